@@ -1,0 +1,3 @@
+from foldfab.cli import main
+
+raise SystemExit(main())
