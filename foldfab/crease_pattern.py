@@ -1,0 +1,161 @@
+"""The crease pattern and its folded state, built from a :class:`Reflection` grid.
+
+Crease-pattern coordinates (CONVENTIONS.md): ``x`` is the distance travelled
+along the line element, ``y`` the arc length along the profile.  Vertex
+``(j, k)`` is line element ``j`` crossing plane ``k``; zero-length segments
+merge their two end vertices (the diamond pattern), so a face is a trapezoid or
+a triangle.  Every crease gets its fold angle from the signed dihedral angle of
+the 3D model, seen from the front of the crease pattern: valley positive, as in
+FOLD.  Pure geometry: no I/O.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from foldfab.errors import DesignError
+from foldfab.reflection import Reflection
+
+BORDER, MOUNTAIN, VALLEY, FLAT = "B", "M", "V", "F"
+
+
+@dataclass(frozen=True)
+class CreasePattern:
+    """Vertices (2D sheet and 3D folded), quad faces, and edges with assignments.
+
+    ``faces`` is (F, 4) counter-clockwise in the sheet; a triangle repeats one
+    vertex id.  ``face_grid[f] = (j, k)``: the face lies between line elements
+    ``j`` and ``j+1`` and planes ``k`` and ``k+1`` (``k = K`` is the glue tab).
+    ``edges_faces`` holds the two faces beside each edge (-1 for none).
+    """
+
+    vertices: np.ndarray          # (V, 2) mm
+    vertices_3d: np.ndarray       # (V, 3) mm, folded state
+    faces: np.ndarray             # (F, 4) int
+    face_grid: np.ndarray         # (F, 2) int (j, k)
+    edges: np.ndarray             # (E, 2) int
+    assignment: np.ndarray        # (E,) '<U1' in B, M, V, F
+    fold_angle: np.ndarray        # (E,) degrees, valley positive, 0 on borders
+    edges_faces: np.ndarray       # (E, 2) int
+    tab_faces: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))  # (F,) glue-tab faces
+
+    @property
+    def edge_lengths(self) -> np.ndarray:
+        """Length of every edge on the sheet, mm."""
+        return np.linalg.norm(np.diff(self.vertices[self.edges], axis=1)[:, 0], axis=1)
+
+    @property
+    def sheet_size(self) -> tuple[float, float]:
+        """Width and height of the sheet's bounding box, mm."""
+        span = np.ptp(self.vertices, axis=0)
+        return float(span[0]), float(span[1])
+
+    def face_polygons(self) -> list[list[int]]:
+        """Faces as vertex lists without repeated ids (triangles have three)."""
+        out = []
+        for face in self.faces.tolist():
+            poly = [v for i, v in enumerate(face) if v != face[i - 1]]
+            out.append(poly)
+        return out
+
+    def triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """Triangulation of the faces: (T, 3) vertex ids and (T,) face index, degenerate ones dropped."""
+        f = self.faces
+        tris = np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]])
+        owner = np.concatenate([np.arange(len(f)), np.arange(len(f))])
+        ok = (tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 0] != tris[:, 2])
+        return tris[ok], owner[ok]
+
+
+def _face_normals(points: np.ndarray) -> np.ndarray:
+    """Unit normals of the (J-1, C-1) grid quads, from the cross product of their diagonals."""
+    a = points[:-1, :-1]
+    b = points[:-1, 1:]
+    c = points[1:, 1:]
+    d = points[1:, :-1]
+    n = np.cross(c - a, d - b)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+def _fold_angles(n1: np.ndarray, n2: np.ndarray, edge_dir: np.ndarray) -> np.ndarray:
+    """Signed dihedral angles (degrees): ``n1`` is the face left of ``edge_dir`` in the sheet."""
+    e = edge_dir / np.linalg.norm(edge_dir, axis=-1, keepdims=True)
+    sin = np.einsum("...i,...i->...", np.cross(n2, n1), e)
+    cos = np.einsum("...i,...i->...", n1, n2)
+    return np.degrees(np.arctan2(sin, cos))
+
+
+def build_crease_pattern(grid: Reflection, flat_angle: float = 1.0, glue_tab: float = 0.0) -> CreasePattern:
+    """Crease pattern of ``grid``; creases folding less than ``flat_angle`` degrees are flat."""
+    x, points = grid.x, grid.points
+    J = x.shape[0]
+    tab = glue_tab > 0
+    if tab:
+        if not grid.closed:
+            raise DesignError("[crease].glue_tab: a glue tab joins the two ends of a closed trajectory; "
+                              "this trajectory is open: set glue_tab = 0")
+        first = x[:, 1] - x[:, 0]
+        if np.any(first < glue_tab - grid.tolerance):
+            j = int(np.argmin(first))
+            raise DesignError(f"[crease].glue_tab: {glue_tab:g} mm is longer than the first segment of line element {j} "
+                              f"({first[j]:.4g} mm), which the tab must lie on; reduce glue_tab to at most {first.min():.4g}")
+        d0 = points[:, 1] - points[:, 0]
+        d0 = d0 / np.linalg.norm(d0, axis=-1, keepdims=True)
+        x = np.column_stack([x, x[:, -1] + glue_tab])
+        points = np.concatenate([points, (points[:, 0] + glue_tab * d0)[:, None]], axis=1)
+    C = x.shape[1]
+    y = grid.arc
+
+    seglen = np.diff(x, axis=1)
+    zero = seglen == 0.0
+    both = zero[:-1] & zero[1:]
+    if np.any(both):
+        j, k = map(int, np.argwhere(both)[0])
+        raise DesignError(f"profile segment {j}-{j + 1} collapses to a line on trajectory segment {k} "
+                          "(both its line elements have zero length there); move [profile].offset by a small amount")
+
+    new = np.ones((J, C), bool)
+    new[:, 1:] = ~zero
+    ids = np.cumsum(new.ravel()).reshape(J, C) - 1
+    vertices = np.column_stack([x[new], np.broadcast_to(y[:, None], (J, C))[new]])
+    vertices_3d = points[new]
+
+    jj, kk = np.meshgrid(np.arange(J - 1), np.arange(C - 1), indexing="ij")
+    faces = np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], axis=-1).reshape(-1, 4)
+    face_grid = np.column_stack([jj.ravel(), kk.ravel()])
+    face_id = np.arange((J - 1) * (C - 1)).reshape(J - 1, C - 1)
+    normals = _face_normals(points)
+
+    # Horizontal edges (along line elements), pointing +x: face (j, k) lies left (above), (j-1, k) right.
+    hj, hk = np.nonzero(~zero)
+    h_edges = np.column_stack([ids[hj, hk], ids[hj, hk + 1]])
+    h_left = np.where(hj < J - 1, face_id[np.minimum(hj, J - 2), hk], -1)
+    h_right = np.where(hj > 0, face_id[np.maximum(hj - 1, 0), hk], -1)
+    h_dir = points[hj, hk + 1] - points[hj, hk]
+    # Skew edges (along mirror planes), pointing +y: face (j, k-1) lies left, (j, k) right.
+    sj, sk = np.meshgrid(np.arange(J - 1), np.arange(C), indexing="ij")
+    sj, sk = sj.ravel(), sk.ravel()
+    s_edges = np.column_stack([ids[sj, sk], ids[sj + 1, sk]])
+    s_left = np.where(sk > 0, face_id[sj, np.maximum(sk - 1, 0)], -1)
+    s_right = np.where(sk < C - 1, face_id[sj, np.minimum(sk, C - 2)], -1)
+    s_dir = points[sj + 1, sk] - points[sj, sk]
+
+    edges = np.concatenate([h_edges, s_edges])
+    left = np.concatenate([h_left, s_left])
+    right = np.concatenate([h_right, s_right])
+    direction = np.concatenate([h_dir, s_dir])
+    border = (left < 0) | (right < 0)
+    flat_normals = normals.reshape(-1, 3)
+    angle = np.zeros(len(edges))
+    inner = ~border
+    angle[inner] = _fold_angles(flat_normals[left[inner]], flat_normals[right[inner]], direction[inner])
+    assignment = np.full(len(edges), FLAT, dtype="<U1")
+    folded = inner & (np.abs(angle) >= flat_angle) & (angle != 0.0)
+    assignment[folded & (angle > 0)] = VALLEY
+    assignment[folded & (angle < 0)] = MOUNTAIN
+    assignment[border] = BORDER
+    tab_faces = face_grid[:, 1] == C - 2 if tab else np.zeros(len(faces), bool)
+    return CreasePattern(vertices, vertices_3d, faces, face_grid, edges, assignment, angle,
+                         np.column_stack([left, right]), tab_faces)

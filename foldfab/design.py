@@ -1,0 +1,130 @@
+"""A design: a job's polylines turned into the reflection grid and crease pattern.
+
+This is the one place that goes from a validated :class:`~foldfab.job.Job` to
+geometry; the command line, the exporters, fabrication and the studio all call
+:func:`build_design`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from foldfab.crease_pattern import CreasePattern, build_crease_pattern
+from foldfab.errors import DesignError, FoldfabError
+from foldfab.job import Job, SvgSource
+from foldfab.reflection import Reflection, reflect
+
+
+@dataclass(frozen=True)
+class Design:
+    """A built design and what the checks found."""
+
+    job: Job
+    grid: Reflection
+    crease_pattern: CreasePattern
+    penetrations: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    warnings: tuple[str, ...] = ()
+
+
+def _svg_points(source: SvgSource, where: str) -> np.ndarray:
+    from foldfab.svg_polyline import read_svg_polyline
+
+    return read_svg_polyline(source.file, source.path, source.samples, source.tolerance, where)
+
+
+def profile_points(job: Job) -> np.ndarray:
+    """The profile polyline (J, 2) in mm with the job's offset added."""
+    spec = job.profile
+    if spec.points is not None:
+        points = np.array(spec.points, dtype=float)
+    else:
+        points = _svg_points(spec.svg, f"{job.path}: [profile].svg")
+    return points + np.array(spec.offset)
+
+
+def trajectory_points(job: Job) -> np.ndarray:
+    """The trajectory polyline (N, 3) in mm: a template, the given points, or an SVG path."""
+    from foldfab import templates
+
+    spec = job.trajectory
+    if spec.template == "regular":
+        return templates.regular(int(spec.params["corners"]), spec.params["radius"])
+    if spec.template == "star":
+        return templates.star(int(spec.params["points"]), spec.params["outer_radius"], spec.params["inner_radius"])
+    if spec.svg is not None:
+        pts = _svg_points(spec.svg, f"{job.path}: [trajectory].svg")
+    else:
+        pts = np.array(spec.points, dtype=float)
+    if pts.shape[1] == 2:
+        pts = np.column_stack([pts, np.zeros(len(pts))])
+    return pts
+
+
+def build_design(job: Job, *, check_penetration: bool = True, allow_penetration: bool = False) -> Design:
+    """Build the design of ``job``; penetration is an error unless ``allow_penetration``.
+
+    Geometry errors are reported against the job file, naming the table they come from.
+    """
+    try:
+        grid = reflect(profile_points(job), trajectory_points(job))
+        cp = build_crease_pattern(grid, job.crease.flat_angle, job.crease.glue_tab)
+    except DesignError as exc:
+        raise DesignError(f"{job.path}: {exc}") from None
+    penetrations = np.zeros((0, 2), np.int64)
+    warnings: list[str] = []
+    if check_penetration:
+        from foldfab.mesh import find_penetrations
+
+        penetrations = find_penetrations(cp)
+        if len(penetrations):
+            message = penetration_message(cp, penetrations)
+            if not allow_penetration:
+                raise DesignError(f"{job.path}: {message}; change the design, or pass --allow-penetration to build it anyway")
+            warnings.append(message)
+    return Design(job, grid, cp, penetrations, tuple(warnings))
+
+
+def penetration_message(cp: CreasePattern, pairs: np.ndarray, limit: int = 5) -> str:
+    """One line naming the intersecting faces by (profile segment, trajectory segment)."""
+    names = [f"face {a} (profile segment {cp.face_grid[a][0]}, trajectory segment {cp.face_grid[a][1]}) "
+             f"and face {b} (profile segment {cp.face_grid[b][0]}, trajectory segment {cp.face_grid[b][1]})"
+             for a, b in pairs[:limit].tolist()]
+    more = f" and {len(pairs) - limit} more pairs" if len(pairs) > limit else ""
+    return f"penetration: {len(pairs)} pair(s) of faces of the folded model intersect: " + "; ".join(names) + more
+
+
+def summary(design: Design) -> dict:
+    """The numbers ``foldfab design`` prints: counts, crease lengths, sheet size, warnings."""
+    cp = design.crease_pattern
+    lengths = cp.edge_lengths
+    creases = {}
+    for kind, label in (("M", "mountain"), ("V", "valley"), ("F", "flat"), ("B", "border")):
+        mask = cp.assignment == kind
+        creases[label] = {"count": int(mask.sum()), "length_mm": round(float(lengths[mask].sum()), 3)}
+    width, height = cp.sheet_size
+    return {
+        "name": design.job.name,
+        "job": str(design.job.path),
+        "closed": design.grid.closed,
+        "corners": design.grid.corners,
+        "line_elements": int(design.grid.x.shape[0]),
+        "faces": int(len(cp.faces)),
+        "vertices": int(len(cp.vertices)),
+        "creases": creases,
+        "sheet_mm": [round(width, 3), round(height, 3)],
+        "penetrations": int(len(design.penetrations)),
+        "warnings": list(design.warnings),
+    }
+
+
+def load_design(path, **kwargs) -> Design:
+    """Read a job file and build its design."""
+    from foldfab.job import load_job
+
+    return build_design(load_job(path), **kwargs)
+
+
+__all__ = ["Design", "build_design", "load_design", "summary", "profile_points", "trajectory_points",
+           "penetration_message", "FoldfabError"]

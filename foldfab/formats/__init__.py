@@ -1,0 +1,1 @@
+"""Writers for the files the origami world opens: FOLD, SVG, ORIPA ``.cp``, meshes."""

@@ -1,0 +1,285 @@
+"""Job files: the TOML that names a design (profile, trajectory, crease settings).
+
+Reading a job validates every key and returns plain data; it does no geometry.
+Every error names the file and the key (``jobs/x.toml: [trajectory].radius: ...``)
+and says what was expected.  Unknown keys are errors too, so a typo never
+silently falls back to a default.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from foldfab.errors import FoldfabError
+
+TEMPLATES = ("regular", "star", "polyline")
+
+
+@dataclass(frozen=True)
+class SvgSource:
+    """A polyline to be read from a path of an SVG file."""
+
+    file: Path
+    path: str | int = 0
+    samples: int | None = None
+    tolerance: float | None = None
+
+
+@dataclass(frozen=True)
+class ProfileSpec:
+    """The profile polyline: points (u, v) in mm, or an SVG source, plus an offset."""
+
+    points: tuple[tuple[float, float], ...] | None
+    svg: SvgSource | None
+    offset: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class TrajectorySpec:
+    """The trajectory: a template with its parameters, a polyline, or an SVG source."""
+
+    template: str
+    params: dict[str, float] = field(default_factory=dict)
+    points: tuple[tuple[float, ...], ...] | None = None
+    svg: SvgSource | None = None
+
+
+@dataclass(frozen=True)
+class CreaseSpec:
+    """Crease-pattern settings."""
+
+    flat_angle: float = 1.0
+    glue_tab: float = 0.0
+
+
+@dataclass(frozen=True)
+class Job:
+    """A validated job file."""
+
+    path: Path
+    name: str
+    profile: ProfileSpec
+    trajectory: TrajectorySpec
+    crease: CreaseSpec
+    fabrication: dict[str, Any] = field(default_factory=dict)
+    text: str = ""
+
+
+class _Table:
+    """A TOML table that remembers where it came from, for error messages."""
+
+    def __init__(self, source: str, name: str, data: Any):
+        self.source = source
+        self.name = name
+        if not isinstance(data, dict):
+            self.fail(None, f"expected a table, got {_type_name(data)}")
+        self.data = data
+        self.used: set[str] = set()
+
+    def where(self, key: str | None) -> str:
+        return f"{self.source}: [{self.name}]" + (f".{key}" if key else "")
+
+    def fail(self, key: str | None, message: str):
+        raise FoldfabError(f"{self.where(key)}: {message}")
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def get(self, key: str, default: Any = None, *, required: bool = False) -> Any:
+        self.used.add(key)
+        if key not in self.data:
+            if required:
+                self.fail(key, "missing; add it to the job file")
+            return default
+        return self.data[key]
+
+    def number(self, key: str, default: float | None = None, *, required: bool = False,
+               minimum: float | None = None, exclusive_minimum: float | None = None,
+               maximum: float | None = None) -> float | None:
+        value = self.get(key, default, required=required)
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.fail(key, f"expected a number, got {_type_name(value)} {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            self.fail(key, f"expected a finite number, got {value}")
+        if minimum is not None and value < minimum:
+            self.fail(key, f"must be at least {minimum:g}, got {value:g}")
+        if exclusive_minimum is not None and value <= exclusive_minimum:
+            self.fail(key, f"must be greater than {exclusive_minimum:g}, got {value:g}")
+        if maximum is not None and value > maximum:
+            self.fail(key, f"must be at most {maximum:g}, got {value:g}")
+        return value
+
+    def integer(self, key: str, default: int | None = None, *, required: bool = False,
+                minimum: int | None = None, maximum: int | None = None) -> int | None:
+        value = self.get(key, default, required=required)
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(key, f"expected a whole number, got {_type_name(value)} {value!r}")
+        if minimum is not None and value < minimum:
+            self.fail(key, f"must be at least {minimum}, got {value}")
+        if maximum is not None and value > maximum:
+            self.fail(key, f"must be at most {maximum}, got {value}")
+        return value
+
+    def string(self, key: str, default: str | None = None, *, required: bool = False,
+               choices: tuple[str, ...] | None = None) -> str | None:
+        value = self.get(key, default, required=required)
+        if value is None:
+            return None
+        if not isinstance(value, str):
+            self.fail(key, f"expected a string, got {_type_name(value)} {value!r}")
+        if choices is not None and value not in choices:
+            self.fail(key, f"expected one of {', '.join(map(repr, choices))}, got {value!r}")
+        return value
+
+    def points(self, key: str, dims: tuple[int, ...], *, minimum: int = 2) -> tuple[tuple[float, ...], ...]:
+        value = self.get(key, required=True)
+        names = ("u", "v") if self.name == "profile" else ("x", "y", "z")
+        shape = " or ".join(f"[{', '.join(names[:d])}]" for d in dims)
+        if not isinstance(value, list):
+            self.fail(key, f"expected a list of points {shape}, got {_type_name(value)}")
+        if len(value) < minimum:
+            self.fail(key, f"expected at least {minimum} points, got {len(value)}")
+        out = []
+        width = None
+        for i, point in enumerate(value):
+            if (not isinstance(point, list) or len(point) not in dims
+                    or any(isinstance(c, bool) or not isinstance(c, (int, float)) for c in point)):
+                self.fail(f"{key}[{i}]", f"expected a point {shape} of numbers, got {point!r}")
+            if width is None:
+                width = len(point)
+            elif len(point) != width:
+                self.fail(f"{key}[{i}]", f"has {len(point)} coordinates but point 0 has {width}; use one form for all points")
+            if not all(math.isfinite(float(c)) for c in point):
+                self.fail(f"{key}[{i}]", f"coordinates must be finite numbers, got {point!r}")
+            out.append(tuple(float(c) for c in point))
+        return tuple(out)
+
+    def pair(self, key: str, default: tuple[float, float]) -> tuple[float, float]:
+        value = self.get(key, None)
+        if value is None:
+            return default
+        if (not isinstance(value, list) or len(value) != 2
+                or any(isinstance(c, bool) or not isinstance(c, (int, float)) for c in value)
+                or not all(math.isfinite(float(c)) for c in value)):
+            self.fail(key, f"expected a pair of finite numbers [a, b], got {value!r}")
+        return (float(value[0]), float(value[1]))
+
+    def check_unknown(self, allowed: set[str] | None = None) -> None:
+        allowed = self.used if allowed is None else allowed
+        unknown = sorted(set(self.data) - allowed)
+        if unknown:
+            self.fail(unknown[0], f"unknown key; expected one of: {', '.join(sorted(allowed))}")
+
+
+def _type_name(value: Any) -> str:
+    return {dict: "a table", list: "a list", str: "a string", bool: "a boolean",
+            int: "an integer", float: "a number"}.get(type(value), type(value).__name__)
+
+
+def _svg_source(table: _Table, base: Path) -> SvgSource:
+    file = table.string("svg", required=True)
+    path_value = table.get("path", 0)
+    if isinstance(path_value, bool) or not isinstance(path_value, (str, int)):
+        table.fail("path", f"expected a path id (string) or index (whole number), got {path_value!r}")
+    if isinstance(path_value, int) and path_value < 0:
+        table.fail("path", f"a path index must be 0 or more, got {path_value}")
+    samples = table.integer("samples", None, minimum=2)
+    tolerance = table.number("tolerance", None, exclusive_minimum=0.0)
+    if samples is not None and tolerance is not None:
+        table.fail("samples", "give either samples or tolerance, not both")
+    resolved = (base / file).resolve()
+    if not resolved.is_file():
+        table.fail("svg", f"file not found: {resolved}")
+    return SvgSource(resolved, path_value, samples, tolerance)
+
+
+def _parse_profile(table: _Table, base: Path) -> ProfileSpec:
+    if table.has("points") == table.has("svg"):
+        table.fail(None, "give either points = [[u, v], ...] or svg = \"file.svg\" (exactly one)")
+    offset = table.pair("offset", (0.0, 0.0))
+    if table.has("points"):
+        spec = ProfileSpec(table.points("points", (2,)), None, offset)
+    else:
+        spec = ProfileSpec(None, _svg_source(table, base), offset)
+    table.check_unknown()
+    return spec
+
+
+def _parse_trajectory(table: _Table, base: Path) -> TrajectorySpec:
+    if table.has("svg"):
+        template = table.string("template", "polyline", choices=("polyline",))
+        spec = TrajectorySpec(template, svg=_svg_source(table, base))
+    else:
+        template = table.string("template", required=True, choices=TEMPLATES)
+        if template == "regular":
+            params = {"corners": table.integer("corners", required=True, minimum=3, maximum=100000),
+                      "radius": table.number("radius", required=True, exclusive_minimum=0.0)}
+            spec = TrajectorySpec(template, params)
+        elif template == "star":
+            params = {"points": table.integer("points", required=True, minimum=2, maximum=100000),
+                      "outer_radius": table.number("outer_radius", required=True, exclusive_minimum=0.0),
+                      "inner_radius": table.number("inner_radius", required=True, exclusive_minimum=0.0)}
+            if params["inner_radius"] == params["outer_radius"]:
+                table.fail("inner_radius", "must differ from outer_radius (equal radii give a regular polygon: use template = \"regular\")")
+            spec = TrajectorySpec(template, params)
+        else:
+            spec = TrajectorySpec(template, points=table.points("points", (2, 3)))
+    table.check_unknown()
+    return spec
+
+
+def _parse_crease(table: _Table) -> CreaseSpec:
+    spec = CreaseSpec(flat_angle=table.number("flat_angle", 1.0, minimum=0.0, maximum=180.0),
+                      glue_tab=table.number("glue_tab", 0.0, minimum=0.0))
+    table.check_unknown()
+    return spec
+
+
+def parse_job(text: str, path: str | Path = "<job>") -> Job:
+    """Validate the TOML text of a job; relative paths resolve against ``path``'s folder."""
+    path = Path(path)
+    source = str(path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise FoldfabError(f"{source}: not valid TOML: {exc}") from None
+    allowed = {"design", "profile", "trajectory", "crease", "fabrication"}
+    unknown = sorted(set(data) - allowed)
+    if unknown:
+        raise FoldfabError(f"{source}: [{unknown[0]}]: unknown table; expected one of: "
+                           + ", ".join(f"[{t}]" for t in sorted(allowed)))
+    base = path.parent
+    design = _Table(source, "design", data.get("design", {}))
+    name = design.string("name", path.stem)
+    design.check_unknown()
+    for required in ("profile", "trajectory"):
+        if required not in data:
+            raise FoldfabError(f"{source}: [{required}]: missing table; every job needs [profile] and [trajectory]")
+    profile = _parse_profile(_Table(source, "profile", data["profile"]), base)
+    trajectory = _parse_trajectory(_Table(source, "trajectory", data["trajectory"]), base)
+    crease = _parse_crease(_Table(source, "crease", data.get("crease", {})))
+    fabrication = data.get("fabrication", {})
+    if not isinstance(fabrication, dict):
+        raise FoldfabError(f"{source}: [fabrication]: expected a table")
+    return Job(path, name, profile, trajectory, crease, fabrication, text)
+
+
+def load_job(path: str | Path) -> Job:
+    """Read and validate a job file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise FoldfabError(f"{path}: job file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise FoldfabError(f"{path}: cannot read job file: {exc}") from None
+    return parse_job(text, path)

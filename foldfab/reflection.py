@@ -1,0 +1,225 @@
+"""The mirror-reflection construction of the paper, vectorized with numpy.
+
+A profile polyline (u, v) is swept along the first trajectory direction into
+parallel *line elements*; a mirror plane at every trajectory corner reflects
+them, so line element ``j`` on trajectory segment ``k`` runs parallel to
+``d_k``.  Everything follows from one observation: the composition of the
+mirrors up to segment ``k`` maps the initial frame (travel ``d_0``, right
+``r_0``, height ``h_0``) at ``T_0`` to a frame ``(d_k, r_k, h_k)`` at ``T_k``,
+so line element ``j`` on segment ``k`` is the line
+
+    L(x) = T_k + (x - σ_k)·d_k + u_j·r_k + v_j·h_k,
+
+with ``x`` the distance travelled along the line element (the crease-pattern
+abscissa) and ``σ_k`` the arc length of the trajectory up to ``T_k``.  Its
+crossing with a plane of normal ``n`` through ``T_k`` is at
+
+    x = σ_k − (u_j·(n·r_k) + v_j·(n·h_k)) / (n·d_k),
+
+an outer product of the profile with per-plane coefficients: the whole grid of
+crossings costs a few array operations.  Pure geometry: no I/O.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from foldfab.errors import DesignError
+
+#: relative tolerance (of the design's size) below which a length counts as zero
+REL_TOL = 1e-9
+
+
+@dataclass(frozen=True)
+class Reflection:
+    """The line-element grid of a design.
+
+    ``x[j, k]`` is where line element ``j`` crosses plane ``k`` in crease-pattern
+    coordinates, ``points[j, k]`` the same crossing in 3D; planes are the start
+    plane (k = 0), the mirrors at the corners, and the end plane (k = K).
+    """
+
+    profile: np.ndarray       # (J, 2) profile points (u, v), offset applied
+    arc: np.ndarray           # (J,) arc length along the profile: crease-pattern y
+    trajectory: np.ndarray    # (K+1, 3) trajectory points after straight corners are dropped
+    closed: bool
+    corner_seam: bool         # closed, and the start point is a corner
+    mirror_normals: np.ndarray  # (K+1, 3) plane normals: start, corners, end
+    x: np.ndarray             # (J, K+1)
+    points: np.ndarray        # (J, K+1, 3)
+    corner_labels: tuple[str, ...]  # human names of the K+1 planes, for messages
+    tolerance: float          # absolute length tolerance used (mm)
+
+    @property
+    def corners(self) -> int:
+        """Number of mirror planes (corners with a turn), the seam included."""
+        return len(self.trajectory) - 2 + int(self.corner_seam)
+
+    @property
+    def segment_lengths(self) -> np.ndarray:
+        """(J, K) length of every segment of every line element."""
+        return np.diff(self.x, axis=1)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _reflect(v: np.ndarray, n: np.ndarray) -> np.ndarray:
+    return v - 2.0 * np.dot(v, n) * n
+
+
+def _check_polyline(points: np.ndarray, what: str, tol: float) -> None:
+    if len(points) < 2:
+        raise DesignError(f"{what}: needs at least 2 points, got {len(points)}")
+    if not np.all(np.isfinite(points)):
+        bad = int(np.argwhere(~np.isfinite(points))[0][0])
+        raise DesignError(f"{what}: point {bad} is not a finite number: {points[bad].tolist()}")
+    steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    if np.any(steps <= tol):
+        i = int(np.argmax(steps <= tol))
+        raise DesignError(f"{what}: points {i} and {i + 1} are the same point {points[i].tolist()}; remove the repeated point")
+
+
+def _simplify_trajectory(points: np.ndarray) -> tuple[np.ndarray, list[int]]:
+    """Drop straight corners (no turn, no mirror); reject reversals. Returns points and original indices."""
+    d = _unit(np.diff(points, axis=0))
+    turn = np.linalg.norm(d[1:] - d[:-1], axis=1)
+    reversal = np.linalg.norm(d[1:] + d[:-1], axis=1) <= 1e-9
+    if np.any(reversal):
+        i = int(np.argmax(reversal)) + 1
+        raise DesignError(f"trajectory: the path turns back on itself at point {i} {points[i].tolist()}; "
+                          "a 180-degree turn has no mirror plane: remove or move that point")
+    keep = np.concatenate([[True], turn > 1e-12, [True]])
+    index = np.flatnonzero(keep)
+    return points[keep], index.tolist()
+
+
+def reflect(profile: np.ndarray, trajectory: np.ndarray) -> Reflection:
+    """Build the line-element grid for ``profile`` (J, 2) and ``trajectory`` (N, 2|3).
+
+    Raises :class:`DesignError` for an invalid design: too few or repeated
+    points, an odd number of corners on a closed trajectory, a closed 3D
+    trajectory that does not close, or a negative segment length.
+    """
+    profile = np.asarray(profile, dtype=float)
+    trajectory = np.asarray(trajectory, dtype=float)
+    if trajectory.ndim == 2 and trajectory.shape[1] == 2:
+        trajectory = np.column_stack([trajectory, np.zeros(len(trajectory))])
+    scale = max(float(np.ptp(trajectory, axis=0).max(initial=0.0)) if trajectory.size else 0.0,
+                float(np.ptp(profile, axis=0).max(initial=0.0)) if profile.size else 0.0, 1.0)
+    tol = REL_TOL * scale
+    _check_polyline(profile, "profile", tol)
+    _check_polyline(trajectory, "trajectory", tol)
+
+    closed = bool(np.all(trajectory[0] == trajectory[-1]))
+    traj, original = _simplify_trajectory(trajectory)
+
+    seg = np.diff(traj, axis=0)
+    lengths = np.linalg.norm(seg, axis=1)
+    d = seg / lengths[:, None]
+    sigma = np.concatenate([[0.0], np.cumsum(lengths)])
+    K = len(d)
+
+    z = np.array([0.0, 0.0, 1.0])
+    right = np.cross(d[0], z)
+    if np.linalg.norm(right) < 1e-12:
+        raise DesignError("trajectory: the first segment is vertical, so 'right of the travel direction' "
+                          "is undefined; start the trajectory with a segment that is not vertical")
+    r0 = right / np.linalg.norm(right)
+    h0 = np.cross(r0, d[0])
+
+    mirror = _unit(d[:-1] - d[1:])  # normals at the K-1 interior corners
+    corner_seam = closed and np.linalg.norm(d[-1] - d[0]) > 1e-12
+    if closed and np.linalg.norm(d[-1] + d[0]) <= 1e-9:
+        raise DesignError(f"trajectory: the path turns back on itself at its start point {trajectory[0].tolist()}; "
+                          "a 180-degree turn has no mirror plane: move the start point")
+    seam = _unit(d[-1] - d[0]) if corner_seam else d[0]
+    normals = np.vstack([seam, mirror, seam if closed else d[-1]])
+
+    # Frames of every segment: reflect (r, h) at each mirror in turn.
+    frames_r = np.empty((K, 3))
+    frames_h = np.empty((K, 3))
+    r, h = r0, h0
+    for k in range(K):
+        if k:
+            r, h = _reflect(r, mirror[k - 1]), _reflect(h, mirror[k - 1])
+        frames_r[k], frames_h[k] = r, h
+
+    labels = _plane_labels(traj, original, closed, corner_seam)
+    if closed:
+        _check_closure(frames_r[-1], frames_h[-1], r0, h0, seam if corner_seam else None, len(mirror) + int(corner_seam))
+
+    # Plane k uses the frame of segment min(k, K-1): a mirror gives the same crossing from either side.
+    f = np.minimum(np.arange(K + 1), K - 1)
+    nd = np.einsum("ij,ij->i", normals, d[f])
+    coef_u = np.einsum("ij,ij->i", normals, frames_r[f]) / nd
+    coef_v = np.einsum("ij,ij->i", normals, frames_h[f]) / nd
+    u, v = profile[:, 0], profile[:, 1]
+    x = sigma[None, :] - np.multiply.outer(u, coef_u) - np.multiply.outer(v, coef_v)
+
+    seglen = np.diff(x, axis=1)
+    negative = seglen < -tol
+    if np.any(negative):
+        j, k = map(int, np.argwhere(negative)[0])
+        raise DesignError(_negative_message(j, k, profile, sigma, coef_u, coef_v, seglen[j, k], labels))
+    zero = np.abs(seglen) <= tol
+    if np.any(zero):
+        # Snap zero-length segments exactly, so their end points coincide.
+        x = x[:, :1] + np.concatenate([np.zeros((len(x), 1)), np.cumsum(np.where(zero, 0.0, seglen), axis=1)], axis=1)
+
+    offset = x - sigma[None, :]
+    points = (traj[None, :, :] + offset[:, :, None] * d[f][None]
+              + u[:, None, None] * frames_r[f][None] + v[:, None, None] * frames_h[f][None])
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(profile, axis=0), axis=1))])
+    return Reflection(profile, arc, traj, closed, bool(corner_seam), normals, x, points, labels, tol)
+
+
+def _plane_labels(traj: np.ndarray, original: list[int], closed: bool, corner_seam: bool) -> tuple[str, ...]:
+    def at(i: int) -> str:
+        p = traj[i]
+        coords = ", ".join(f"{c:g}" for c in (p if p[2] != 0 else p[:2]))
+        return f"trajectory point {original[i]} ({coords})"
+
+    inner = [f"the mirror at {at(i)}" for i in range(1, len(traj) - 1)]
+    if closed and corner_seam:
+        first = last = f"the seam mirror at {at(0)}"
+    elif closed:
+        first = last = f"the seam at {at(0)}"
+    else:
+        first, last = f"the start plane at {at(0)}", f"the end plane at {at(len(traj) - 1)}"
+    return (first, *inner, last)
+
+
+def _check_closure(r_end, h_end, r0, h0, seam_normal, corners: int) -> None:
+    if corners % 2:
+        raise DesignError(f"trajectory: a closed trajectory needs an even number of corners, this one has {corners}: "
+                          "every mirror flips the paper, so an odd count cannot meet itself at the seam; "
+                          "add or remove a corner")
+    if seam_normal is not None:
+        r_end, h_end = _reflect(r_end, seam_normal), _reflect(h_end, seam_normal)
+    if np.linalg.norm(r_end - r0) > 1e-9 or np.linalg.norm(h_end - h0) > 1e-9:
+        angle = np.degrees(np.arctan2(np.dot(np.cross(r0, r_end), np.cross(r0, h0)), np.dot(r0, r_end)))
+        raise DesignError(f"trajectory: this closed 3D trajectory does not close: its mirrors turn the profile by "
+                          f"{abs(angle):.3g} degrees about the seam; make the trajectory planar or symmetric so the turns cancel")
+
+
+def _negative_message(j, k, profile, sigma, coef_u, coef_v, length, labels) -> str:
+    u, v = profile[j]
+    c0 = sigma[k + 1] - sigma[k]
+    cu = -(coef_u[k + 1] - coef_u[k])
+    cv = -(coef_v[k + 1] - coef_v[k])
+    if abs(cu) > 1e-12:
+        limit = -(c0 + cv * v) / cu
+        advice = (f"reduce u of profile point {j} (or [profile].offset[0]) to at most {limit:.4g} mm" if cu < 0 else
+                  f"increase u of profile point {j} (or [profile].offset[0]) to at least {limit:.4g} mm")
+    elif abs(cv) > 1e-12:
+        limit = -(c0 + cu * u) / cv
+        advice = (f"reduce v of profile point {j} (or [profile].offset[1]) to at most {limit:.4g} mm" if cv < 0 else
+                  f"increase v of profile point {j} (or [profile].offset[1]) to at least {limit:.4g} mm")
+    else:  # pragma: no cover - a negative length always depends on u or v
+        advice = "enlarge the trajectory"
+    return (f"line element {j} (profile point {j} at u={u:g}, v={v:g}) meets {labels[k + 1]} before {labels[k]}: "
+            f"its segment {k} would be {length:.4g} mm long; {advice}, or enlarge the trajectory")

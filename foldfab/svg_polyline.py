@@ -1,0 +1,119 @@
+"""Read one path of an SVG file as a polyline in millimetres.
+
+The page's bottom-left corner is the origin, x (or the profile's u) runs to the
+right and y (or v) runs up: SVG's y-down user units are flipped and scaled to mm
+with the file's own width/height and viewBox.  Straight segments keep their
+exact end points; curves are sampled by a maximum chord error or, with
+``samples``, by a fixed number of points spaced evenly along the arc.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from foldfab.errors import FoldfabError
+
+_UNIT_MM = {"": 25.4 / 96, "px": 25.4 / 96, "mm": 1.0, "cm": 10.0, "in": 25.4,
+            "pt": 25.4 / 72, "pc": 25.4 / 6, "q": 0.25}
+DEFAULT_TOLERANCE = 0.05  # mm chord error when neither samples nor tolerance is given
+
+
+def _length_mm(value: str | None, where: str) -> float | None:
+    if value is None:
+        return None
+    match = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([a-zA-Z%]*)\s*", value)
+    if not match or match.group(2).lower() not in _UNIT_MM:
+        raise FoldfabError(f"{where}: unsupported SVG length {value!r}; use a number with mm, cm, in, pt, pc or px")
+    return float(match.group(1)) * _UNIT_MM[match.group(2).lower()]
+
+
+def _page_transform(root, where: str) -> tuple[float, float, float, float]:
+    """(scale_x, scale_y, min_x, min_y) mapping user units to mm, and the page height in mm."""
+    width = _length_mm(root.get("width"), f"{where}: width")
+    height = _length_mm(root.get("height"), f"{where}: height")
+    view_box = root.get("viewBox")
+    if view_box:
+        try:
+            vx, vy, vw, vh = (float(v) for v in re.split(r"[\s,]+", view_box.strip()))
+        except ValueError:
+            raise FoldfabError(f"{where}: viewBox {view_box!r} is not four numbers") from None
+        if vw <= 0 or vh <= 0:
+            raise FoldfabError(f"{where}: viewBox {view_box!r} has no area")
+        sx = width / vw if width else _UNIT_MM["px"]
+        sy = height / vh if height else sx
+        return sx, sy, vx, vy + vh
+    unit = _UNIT_MM["px"]
+    page_h = height / unit if height else 0.0
+    return unit, unit, 0.0, page_h
+
+
+def _sample(path, samples: int | None, tolerance: float, scale: float) -> np.ndarray:
+    """Points along an svgpathtools Path, in user units (complex)."""
+    from svgpathtools import Line
+
+    if samples is not None:
+        total = path.length()
+        ts = np.linspace(0.0, total, samples)
+        return np.array([path.point(path.ilength(s)) if 0 < s < total else path.point(0 if s == 0 else 1)
+                         for s in ts])
+    points = [path[0].start]
+    tol = tolerance / scale
+    for seg in path:
+        if isinstance(seg, Line):
+            points.append(seg.end)
+            continue
+        stack = [(0.0, 1.0)]
+        out = []
+        while stack:
+            t0, t1 = stack.pop()
+            p0, p1 = seg.point(t0), seg.point(t1)
+            ts = np.linspace(t0, t1, 5)[1:-1]
+            chord = p1 - p0
+            err = max(abs(((seg.point(t) - p0) * np.conj(chord)).imag) / abs(chord) if abs(chord) > 0
+                      else abs(seg.point(t) - p0) for t in ts)
+            if err > tol and t1 - t0 > 1e-6:
+                tm = 0.5 * (t0 + t1)
+                stack.append((tm, t1))
+                stack.append((t0, tm))
+            else:
+                out.append(p1)
+        points.extend(out)
+    return np.array(points)
+
+
+def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = None,
+                      tolerance: float | None = None, where: str = "") -> np.ndarray:
+    """The chosen path of ``file`` as an (N, 2) array in mm, y up from the page bottom."""
+    from xml.etree.ElementTree import ParseError
+
+    from svgpathtools import Document
+
+    where = where or str(file)
+    try:
+        doc = Document(str(file))
+    except (ParseError, OSError) as exc:
+        raise FoldfabError(f"{file}: cannot read SVG: {exc}") from None
+    root = doc.tree.getroot()
+    order = {id(el): i for i, el in enumerate(root.iter())}
+    paths = sorted((p for p in doc.paths() if len(p) > 0), key=lambda p: order.get(id(p.element), 0))
+    if isinstance(path, str):
+        chosen = [p for p in paths if p.element.get("id") == path]
+        if not chosen:
+            ids = [p.element.get("id") for p in paths if p.element.get("id")]
+            raise FoldfabError(f"{where}: no path with id {path!r} in {file}; ids there: {', '.join(ids) or 'none'}")
+        chosen_path = chosen[0]
+    else:
+        if path >= len(paths):
+            raise FoldfabError(f"{where}: path index {path} out of range: {file} has {len(paths)} drawable path(s)")
+        chosen_path = paths[path]
+    if not chosen_path.iscontinuous():
+        raise FoldfabError(f"{where}: the chosen path of {file} has several pieces (subpaths); use one continuous path")
+    sx, sy, min_x, bottom = _page_transform(root, f"{file}")
+    pts = _sample(chosen_path, samples, tolerance or DEFAULT_TOLERANCE, min(sx, sy))
+    out = np.column_stack([(pts.real - min_x) * sx, (bottom - pts.imag) * sy])
+    keep = np.ones(len(out), bool)
+    keep[1:] = np.any(np.abs(np.diff(out, axis=0)) > 1e-12, axis=1)
+    return out[keep]
