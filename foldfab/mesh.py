@@ -96,8 +96,10 @@ def _triangles_intersect(a: np.ndarray, b: np.ndarray, eps: float) -> np.ndarray
     axes = axes / np.where(valid, norm, 1.0)[..., None]
     pa = np.einsum("pkd,pvd->pkv", axes, a)
     pb = np.einsum("pkd,pvd->pkv", axes, b)
-    overlap = np.minimum(pa.max(2), pb.max(2)) - np.maximum(pa.min(2), pb.min(2))
-    return np.all(~valid | (overlap > eps), axis=1)
+    # Penetration depth along each axis: how far one triangle must move to clear the other.
+    # (Not the length of the intervals' overlap, which is 0 on a triangle's own normal.)
+    depth = np.minimum(pa.max(2) - pb.min(2), pb.max(2) - pa.min(2))
+    return np.all(~valid | (depth > eps), axis=1)
 
 
 def find_penetrations(cp: CreasePattern, tolerance: float = 1e-6) -> np.ndarray:
