@@ -1,0 +1,140 @@
+"""G-code writer for GRBL 1.1 plotters and drag knives.
+
+One block per line, ``\\n`` endings, every line shorter than 80 characters (GRBL's
+line buffer), numbers with at most three decimals, and only words GRBL 1.1 accepts:
+``G0 G1 G4 G17 G21 G90 M0 M2 M3 M5`` with ``X Y Z F S P``.  Modal ``G1`` and ``F``
+are written only when they change.  The tool goes up and down either by Z moves
+(``G0 Z<up>`` / ``G1 Z<down> F<z feed>``) or by servo commands (``M3 S..`` /
+``M5``, each followed by a ``G4 P<pen_lift_time>`` dwell), as the profile says.
+
+A pause (sheet flip, or a tool change on a device without a pen changer) lifts the
+tool, parks it, writes the operator message as ``(comment)`` lines (GRBL strips
+comments) and then ``M0``; the message is also in :attr:`Program.pauses`.  The end
+lifts the tool, parks it and writes ``M2``.
+
+vpype-gcode templates are not used: they have no per-layer tool depth, no pauses,
+and they do not refuse geometry outside the machine's reach.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from typing import TYPE_CHECKING
+
+from foldfab.errors import FoldfabError
+from foldfab.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps
+
+if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
+    from foldfab.plan import PlotPlan
+
+MAX_LINE = 79  # characters before "\n": GRBL 1.1 holds 80 including the terminator
+
+
+def write_gcode(plan: PlotPlan, device: DeviceProfile) -> Program:
+    """The GRBL 1.1 program drawing ``plan`` on ``device``."""
+    frame, items = sweeps(plan, device)
+    out = _GcodeWriter(device)
+    sheet = f"{fmt_number(plan.sheet[0], 1)} x {fmt_number(plan.sheet[1], 1)} mm"
+    out.comment(f"foldfab program for {device.name}, sheet {sheet}")
+    out.line("G21 G90 G17")
+    out.pen_up()
+    for item in items:
+        if isinstance(item, Stop):
+            out.park()
+            for text in textwrap.wrap(_ascii(item.message), MAX_LINE - 2) or [""]:
+                out.comment(text)
+            out.line("M0")
+            out.builder.pause(item)
+        else:
+            out.sweep(item)
+    out.park()
+    out.line("M2")
+    return out.builder.build()
+
+
+def _ascii(text: str) -> str:
+    """Comment-safe text: printable ASCII, no parentheses (GRBL ends a comment at ')')."""
+    text = text.translate({ord("("): "[", ord(")"): "]"})
+    return "".join(c if " " <= c <= "~" else ("?" if c > "~" else " ") for c in text)
+
+
+class _GcodeWriter:
+    """Writes lines and tracks GRBL's modal state (motion mode, feed, tool up/down)."""
+
+    def __init__(self, device: DeviceProfile):
+        self.device = device
+        self.builder = ProgramBuilder("gcode", device)
+        self.motion: str | None = None
+        self.feed: float | None = None
+        self.position: tuple[str, str] | None = None
+        self.down = True  # unknown at the start: force the first lift
+
+    def line(self, text: str) -> None:
+        assert len(text) <= MAX_LINE, text
+        self.builder.write(text + "\n")
+
+    def comment(self, text: str) -> None:
+        self.line("(" + _ascii(text)[: MAX_LINE - 2] + ")")
+
+    def move(self, mode: str, words: str, feed: float | None = None) -> None:
+        """One G0/G1 block with modal words omitted when unchanged."""
+        head = "" if mode == self.motion else mode + " "
+        tail = ""
+        if feed is not None and feed != self.feed:
+            tail = " F" + fmt_number(feed, 3)
+            self.feed = feed
+        self.motion = mode
+        self.line(head + words + tail)
+
+    def pen_command(self, command: str) -> None:
+        self.line(command)
+        if self.device.motion.pen_lift_time > 0:
+            self.line("G4 P" + fmt_number(self.device.motion.pen_lift_time, 3))
+
+    def pen_up(self) -> None:
+        if not self.down:
+            return
+        up = self.device.gcode.pen_up
+        if isinstance(up, str):
+            self.pen_command(up)
+        else:
+            self.move("G0", "Z" + fmt_number(up, 3))
+        self.down = False
+
+    def pen_down(self, down: float | str) -> None:
+        if isinstance(down, str):
+            self.pen_command(down)
+        else:
+            self.move("G1", "Z" + fmt_number(down, 3), self.device.gcode.z_speed * 60)
+        self.down = True
+
+    def travel(self, xy: tuple[str, str]) -> None:
+        if xy != self.position:
+            self.move("G0", f"X{xy[0]} Y{xy[1]}")
+            self.position = xy
+
+    def park(self) -> None:
+        self.pen_up()
+        self.travel(tuple(fmt_number(v, 3) for v in self.device.motion.park))
+
+    def sweep(self, sweep: Sweep) -> None:
+        self.builder.start(sweep)
+        self.comment(f"{sweep.name} pass, tool {sweep.tool.pen}, sweep {sweep.repeat + 1} "
+                     f"of {sweep.tool.passes}")
+        if sweep.name not in self.device.layers:
+            raise FoldfabError(
+                f"plan step {sweep.step + 1}: {self.device.name} has no [layers.{sweep.name}] "
+                f"table to say how deep the tool goes (known: {', '.join(self.device.layers)}); "
+                f"add one to {self.device.source} or rename the pass"
+            )
+        down = self.device.layers[sweep.name].pen_down
+        feed = sweep.tool.speed * 60
+        for line in sweep.lines:
+            points = [(fmt_number(x, 3), fmt_number(y, 3)) for x, y in line.tolist()]
+            self.travel(points[0])
+            self.pen_down(down)
+            for x, y in points[1:]:
+                self.move("G1", f"X{x} Y{y}", feed)
+            self.position = points[-1]
+            self.pen_up()

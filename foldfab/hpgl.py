@@ -1,0 +1,61 @@
+"""HPGL writer for HP pen plotters and Graphtec / Roland cutters in HP-GL mode.
+
+Output is compact and deterministic: ``IN;`` first; per sweep ``SP``/``FS``/``VS`` only
+when they change; each line as ``PU x,y;PD x,y,x,y,...;`` in integer plotter units;
+at a pause and at the end the pen is lifted, moved to the park position and put
+away (``PU x,y;SP0;``).  HPGL has no pause command: pauses are byte offsets in
+:attr:`Program.pauses` (see :mod:`foldfab.program`).  Speeds are sent as ``VS`` in
+cm/s (two decimals for ``hp``, whole cm/s for ``graphtec`` and ``roland``); forces as
+``FS`` in the device's own unit (Graphtec force steps, Roland grams-force).
+
+vpype's ``write_hpgl`` is not used: it sets one velocity for the whole file, has no
+force and no pauses, and crops geometry outside the plotter's range silently.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from foldfab.program import Program, ProgramBuilder, Stop, fmt_number, sweeps
+
+if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
+    from foldfab.plan import PlotPlan
+
+SPEED_DECIMALS = {"hp": 2, "graphtec": 0, "roland": 0}
+
+
+def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
+    """The HPGL program drawing ``plan`` on ``device``."""
+    import numpy as np
+
+    _, items = sweeps(plan, device)
+    out = ProgramBuilder("hpgl", device)
+    park_x, park_y = (round(v * device.units_per_mm) for v in device.motion.park)
+    park = f"PU{park_x},{park_y};SP0;"
+    out.write("IN;")
+    pen = force = speed = None
+    for item in items:
+        if isinstance(item, Stop):
+            out.write(park)
+            pen = 0
+            out.pause(item)
+            continue
+        out.start(item)
+        tool = item.tool
+        if tool.pen != pen:
+            out.write(f"SP{tool.pen};")
+            pen = tool.pen
+        if tool.force is not None and tool.force != force:
+            out.write(f"FS{fmt_number(tool.force, 0)};")
+            force = tool.force
+        if tool.speed != speed:
+            out.write(f"VS{fmt_number(tool.speed / 10, SPEED_DECIMALS[device.dialect])};")
+            speed = tool.speed
+        for line in item.lines:
+            units = np.rint(line).astype(np.int64)
+            x, y = units[0]
+            rest = ",".join(map(str, units[1:].ravel().tolist()))
+            out.write(f"PU{x},{y};PD{rest};")
+    out.write(park)
+    return out.build()

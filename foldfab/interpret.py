@@ -1,0 +1,482 @@
+"""Read plotter programs back: what would the device draw, with which tool, where?
+
+:func:`interpret` turns an HPGL or G-code program into an :class:`Interpretation`:
+pen-down strokes in sheet millimetres with the tool state the program set, pen-up
+travel moves (including the first one from the device origin and the last one to
+the park position), and pauses.  Given a :class:`~foldfab.program.Program` rather
+than bare text, strokes are also labelled with their plan step, layer and
+repetition, and HPGL pauses (which exist only as offsets) are placed.
+
+:class:`HPGLTokenizer` is an incremental HP-GL tokenizer: feed it bytes as they
+arrive, get complete :class:`HPGLCommand` objects.  It knows HP-GL's syntax (two-letter
+mnemonics, numbers separated by commas, spaces or signs, optional ``;`` terminators,
+``LB`` labels ended by ETX, and ``ESC .`` device-control sequences), not the meaning
+of commands, so a simulated plotter can reuse it.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Iterator
+
+from foldfab.errors import FoldfabError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from foldfab.devices import DeviceProfile, Frame
+    from foldfab.program import Program, Section
+
+ESC, ETX = 0x1B, 0x03
+ESC_WITH_PARAMETERS = b"@HIMNT"  # ESC . x <parameters> :   (the others take none)
+_PARAM_RUN = re.compile(rb"[0-9+\-.,\s]*")
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
+
+
+@dataclass(frozen=True)
+class HPGLCommand:
+    """One HP-GL instruction: ``name`` is "PU", "SP"..., "LB", or "ESC.B" for device control."""
+
+    name: str
+    params: tuple[float, ...]
+    offset: int
+    """Byte offset of the command's first byte in the stream."""
+    text: str | None = None
+    """The label of ``LB``."""
+    error: str | None = None
+    """Why the parameters could not be read, if they could not."""
+
+
+class HPGLTokenizer:
+    """Incremental HP-GL tokenizer: ``feed(bytes)`` returns the commands completed so far."""
+
+    def __init__(self) -> None:
+        self.offset = 0  # bytes consumed so far
+        self._state = "idle"
+        self._name = ""
+        self._start = 0
+        self._pending = bytearray()
+
+    def feed(self, data: bytes) -> list[HPGLCommand]:
+        """Consume ``data``; return every command it completes."""
+        out: list[HPGLCommand] = []
+        i, n = 0, len(data)
+        while i < n:
+            state = self._state
+            if state == "params":
+                end = _PARAM_RUN.match(data, i).end()
+                self._pending += data[i:end]
+                i = end
+                if i == n:
+                    break
+                byte = data[i]
+                out.append(self._finish())
+                if byte == ord(";"):
+                    i += 1
+                continue  # a letter or ESC starts the next command in state "idle"
+            if state == "label":
+                end = data.find(bytes([ETX]), i)
+                if end < 0:
+                    self._pending += data[i:]
+                    i = n
+                    break
+                self._pending += data[i:end]
+                out.append(self._finish())
+                i = end + 1
+                continue
+            byte = data[i]
+            position = self.offset + i
+            i += 1
+            if state == "idle":
+                if byte == ESC:
+                    self._state, self._start = "esc", position
+                elif chr(byte).isalpha():
+                    self._state, self._start, self._name = "mnemonic", position, chr(byte).upper()
+            elif state == "mnemonic":
+                if chr(byte).isalpha():
+                    self._name += chr(byte).upper()
+                    self._state = "label" if self._name == "LB" else "params"
+                else:  # a lone letter: report it, then read this byte afresh
+                    out.append(HPGLCommand(self._name, (), self._start, error="not a mnemonic"))
+                    self._state = "idle"
+                    i -= 1
+            elif state == "esc":
+                self._state = "escdot" if byte == ord(".") else "idle"
+            elif state == "escdot":
+                self._name = "ESC." + chr(byte)
+                if byte in ESC_WITH_PARAMETERS:
+                    self._state = "escparams"
+                else:
+                    out.append(HPGLCommand(self._name, (), self._start))
+                    self._state = "idle"
+            elif state == "escparams":
+                if byte == ord(":"):
+                    out.append(self._finish(separator=";"))
+                else:
+                    self._pending.append(byte)
+        self.offset += n
+        return out
+
+    def close(self) -> list[HPGLCommand]:
+        """End of stream: return the command still waiting for a terminator, if any."""
+        return [self._finish()] if self._state in ("params", "label") else []
+
+    def _finish(self, separator: str = ",") -> HPGLCommand:
+        text = self._pending.decode("latin-1")
+        self._pending.clear()
+        state, self._state = self._state, "idle"
+        if state == "label":
+            return HPGLCommand(self._name, (), self._start, text=text)
+        numbers = _NUMBER.findall(text)
+        leftover = _NUMBER.sub(" ", text).replace(separator, " ").strip()
+        error = f"cannot read parameters {text!r}" if leftover else None
+        return HPGLCommand(self._name, tuple(float(v) for v in numbers), self._start, error=error)
+
+
+@dataclass
+class Stroke:
+    """One pen-down polyline, in sheet mm, with the tool state the program set."""
+
+    points: np.ndarray
+    """(N, 2) sheet mm; N == 1 for a dot."""
+    pen: int | None
+    """HPGL ``SP`` pen; None for G-code (it names no tool)."""
+    force: float | None
+    speed: float
+    """mm/s as the device executes it (VS or F), else the profile's draw speed."""
+    pen_down: float | str | None
+    """G-code: the Z height or servo command that lowered the tool."""
+    offset: int
+    """Byte offset of the command that lowered the pen."""
+    section: Section | None = None
+    """Plan step, layer and repetition, when interpreting a Program."""
+
+    @property
+    def length(self) -> float:
+        import numpy as np
+
+        return float(np.hypot(*np.diff(self.points, axis=0).T).sum())
+
+    @property
+    def layer(self) -> str:
+        """The layer name, or "pen N" / "unknown" when the program came without sections."""
+        if self.section is not None:
+            return self.section.name
+        return f"pen {self.pen}" if self.pen is not None else "unknown"
+
+
+@dataclass
+class Travel:
+    """A pen-up move between two sheet points (mm)."""
+
+    start: tuple[float, float]
+    end: tuple[float, float]
+    next_stroke: int
+    """Index of the stroke this move leads to (== number of strokes for the final move)."""
+
+
+@dataclass
+class PauseEvent:
+    """The device stops here for the operator."""
+
+    message: str
+    position: tuple[float, float]
+    offset: int
+    strokes_before: int
+
+
+@dataclass
+class Interpretation:
+    """What a program draws, in order."""
+
+    protocol: str
+    strokes: list[Stroke] = field(default_factory=list)
+    travels: list[Travel] = field(default_factory=list)
+    pauses: list[PauseEvent] = field(default_factory=list)
+    ignored: list[str] = field(default_factory=list)
+    """Commands or words that draw nothing and were not understood (for diagnostics)."""
+
+    @property
+    def drawn_length(self) -> float:
+        return sum(stroke.length for stroke in self.strokes)
+
+    @property
+    def travel_length(self) -> float:
+        return sum(math.dist(t.start, t.end) for t in self.travels)
+
+    @property
+    def pen_downs(self) -> int:
+        return len(self.strokes)
+
+
+def interpret(program: Program | str, device: DeviceProfile,
+              sheet: tuple[float, float] | None = None) -> Interpretation:
+    """Interpret ``program`` (a Program or bare text) as ``device`` would run it.
+
+    ``sheet`` (w, h mm) fixes the sheet-to-device mapping; default: the profile's sheet.
+    """
+    from foldfab.program import Program
+
+    frame = device.frame(sheet or device.sheet)
+    text = program.text if isinstance(program, Program) else program
+    known = program if isinstance(program, Program) else None
+    if known is not None and known.protocol != device.protocol:
+        raise FoldfabError(f"a {known.protocol} program cannot run on {device.name} "
+                           f"({device.protocol})")
+    if device.protocol == "hpgl":
+        return _HPGLMachine(device, frame, known).run(text)
+    return _GcodeMachine(device, frame, known).run(text)
+
+
+class _Machine:
+    """Shared bookkeeping: position, pen state, strokes, travels (in device units)."""
+
+    def __init__(self, protocol: str, device: DeviceProfile, frame: Frame, known: Program | None):
+        self.device, self.frame, self.known = device, frame, known
+        self.result = Interpretation(protocol)
+        self.position = (0.0, 0.0)
+        self.stroke: list[tuple[float, float]] | None = None
+        self.stroke_meta: dict = {}
+        self.raw_travels: list[tuple[tuple[float, float], tuple[float, float], int]] = []
+
+    def lower(self, offset: int, **meta) -> None:
+        if self.stroke is None:
+            self.stroke = [self.position]
+            self.stroke_meta = dict(meta, offset=offset)
+
+    def lift(self) -> None:
+        if self.stroke is not None:
+            points = self.frame.to_sheet(self.stroke)
+            meta = self.stroke_meta
+            section = self.known.section_at(meta["offset"]) if self.known else None
+            self.result.strokes.append(Stroke(points=points, section=section, **meta))
+            self.stroke = None
+
+    def move_to(self, target: tuple[float, float]) -> None:
+        if self.stroke is not None:
+            self.stroke.append(target)
+        elif target != self.position:
+            self.raw_travels.append((self.position, target, len(self.result.strokes)))
+        self.position = target
+
+    def sheet_point(self, point: tuple[float, float]) -> tuple[float, float]:
+        x, y = self.frame.to_sheet(point)[0].tolist()
+        return x, y
+
+    def finish(self) -> Interpretation:
+        import numpy as np
+
+        self.lift()
+        if self.raw_travels:
+            ends = np.array([[a, b] for a, b, _ in self.raw_travels]).reshape(-1, 2)
+            sheet = self.frame.to_sheet(ends).reshape(-1, 2, 2).tolist()
+            self.result.travels = [Travel(tuple(s), tuple(e), nxt)
+                                   for (s, e), (_, _, nxt) in zip(sheet, self.raw_travels)]
+        return self.result
+
+
+class _HPGLMachine(_Machine):
+    """HP-GL semantics for PU, PD, PA, PR, SP, VS, FS, IN, DF."""
+
+    def __init__(self, device, frame, known):
+        super().__init__("hpgl", device, frame, known)
+        self.absolute = True
+        self.pen = 0
+        self.reset()
+
+    def reset(self) -> None:
+        self.speeds: dict[int | None, float] = {None: self.device.motion.draw_speed}
+        self.forces: dict[int | None, float | None] = {None: None}
+
+    def run(self, text: str) -> Interpretation:
+        tokenizer = HPGLTokenizer()
+        marks = list(self.known.pauses) if self.known else []
+        commands = tokenizer.feed(text.encode("latin-1")) + tokenizer.close()
+        for command in commands:
+            while marks and marks[0].offset <= command.offset:
+                self.pause(marks.pop(0))
+            self.execute(command)
+        for mark in marks:
+            self.pause(mark)
+        return self.finish()
+
+    def pause(self, mark) -> None:
+        self.lift()
+        self.result.pauses.append(PauseEvent(mark.message, self.sheet_point(self.position),
+                                             mark.offset, len(self.result.strokes)))
+
+    def execute(self, command: HPGLCommand) -> None:
+        name, params = command.name, command.params
+        if command.error:
+            self.result.ignored.append(f"{name} at byte {command.offset}: {command.error}")
+        elif name in ("PU", "PD", "PA", "PR"):
+            if name == "PU":
+                self.lift()
+            elif name == "PD":
+                self.lower(command.offset, pen=self.pen, force=self.current(self.forces),
+                           speed=self.current(self.speeds), pen_down=None)
+            if name in ("PA", "PR"):
+                self.absolute = name == "PA"
+            if len(params) % 2:
+                self.result.ignored.append(f"{name} at byte {command.offset}: odd coordinate count")
+            for x, y in zip(params[::2], params[1::2]):
+                if not self.absolute:
+                    x, y = x + self.position[0], y + self.position[1]
+                self.move_to((x, y))
+        elif name == "SP":
+            self.lift()
+            self.pen = int(params[0]) if params else 0
+        elif name in ("VS", "FS"):
+            table = self.speeds if name == "VS" else self.forces
+            default = self.device.motion.draw_speed if name == "VS" else None
+            value = default if not params else params[0] * 10 if name == "VS" else params[0]
+            if len(params) > 1:  # "VS v,pen": for that pen only
+                table[int(params[1])] = value
+            else:  # for every pen (VS is in cm/s)
+                table.clear()
+                table[None] = value
+        elif name in ("IN", "DF"):
+            if name == "IN":
+                self.lift()
+            self.absolute = True
+            self.reset()
+        else:
+            self.result.ignored.append(name)
+
+    def current(self, table: dict):
+        return table.get(self.pen, table[None])
+
+
+_WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
+_COMMENT = re.compile(r"\(([^)]*)\)?|;(.*)$")
+
+
+class _GcodeMachine(_Machine):
+    """GRBL semantics for G0 G1 G4 G17 G20 G21 G90 G91 G92 M0 M2 M3 M5 and X Y Z F S."""
+
+    def __init__(self, device, frame, known):
+        super().__init__("gcode", device, frame, known)
+        gcode = device.gcode
+        downs = [layer.pen_down for layer in device.layers.values()]
+        self.servo = isinstance(gcode.pen_up, str)
+        self.down_commands = {d for d in downs if isinstance(d, str)}
+        self.lowest_up = None if self.servo else max(downs) + 1e-3  # z <= this: pen down
+        self.messages = {m.offset: m.message for m in known.pauses} if known else {}
+        self.motion, self.feed, self.spindle = "G0", None, 0.0
+        self.z, self.absolute, self.scale = gcode.pen_up if not self.servo else 0.0, True, 1.0
+        self.g92 = (0.0, 0.0)
+        self.g92_pending = False
+        self.is_down = False
+        self.down_by: float | str | None = None
+        self.comments: list[str] = []
+
+    def run(self, text: str) -> Interpretation:
+        offset = 0
+        for raw in text.split("\n"):
+            end = offset + len(raw) + 1
+            self.execute(raw, offset, min(end, len(text)))
+            offset = end
+        return self.finish()
+
+    def execute(self, raw: str, offset: int, end: int) -> None:
+        comments = [a or b for a, b in _COMMENT.findall(raw)]
+        code = _COMMENT.sub(" ", raw).upper()
+        words = _WORD.findall(code)
+        if _WORD.sub(" ", code).strip():
+            self.result.ignored.append(f"line at byte {offset}: {raw.strip()!r}")
+        if not words:
+            self.comments.extend(c.strip() for c in comments)
+            return
+        values = {}
+        for letter, number in words:
+            value = float(number)
+            if letter == "G":
+                self.g_word(value)
+            elif letter == "M":
+                values.setdefault("M", []).append(value)
+            else:
+                values[letter] = value
+        if "F" in values:
+            self.feed = values["F"] * self.scale / 60
+        if "S" in values:
+            self.spindle = values["S"]
+        if self.g92_pending:
+            self.set_position(values)
+        elif "X" in values or "Y" in values:
+            self.xy_move(values, offset)
+        if "Z" in values and not self.g92_pending:
+            self.z = values["Z"] * self.scale + (0 if self.absolute else self.z)
+            if not self.servo:
+                self.pen_state(self.z <= self.lowest_up, self.z, offset)
+        self.g92_pending = False
+        for m in values.get("M", []):
+            self.m_word(m, offset, end)
+        self.comments = []
+
+    def g_word(self, value: float) -> None:
+        if value in (0, 1):
+            self.motion = f"G{int(value)}"
+        elif value in (20, 21):
+            self.scale = 25.4 if value == 20 else 1.0
+        elif value in (90, 91):
+            self.absolute = value == 90
+        elif value == 92:
+            self.g92_pending = True
+        elif value not in (4, 17):
+            self.result.ignored.append(f"G{value:g}")
+
+    def set_position(self, values: dict) -> None:
+        """G92: the current point gets the given coordinates (an offset, not a move)."""
+        x = values.get("X", None)
+        y = values.get("Y", None)
+        gx, gy = self.g92
+        if x is not None:
+            gx = self.position[0] - x * self.scale
+        if y is not None:
+            gy = self.position[1] - y * self.scale
+        self.g92 = (gx, gy)
+
+    def xy_move(self, values: dict, offset: int) -> None:
+        x, y = self.position
+        if self.absolute:
+            x = values["X"] * self.scale + self.g92[0] if "X" in values else x
+            y = values["Y"] * self.scale + self.g92[1] if "Y" in values else y
+        else:
+            x += values.get("X", 0.0) * self.scale
+            y += values.get("Y", 0.0) * self.scale
+        if self.stroke is not None and len(self.stroke) == 1:
+            speed = self.feed if self.motion == "G1" and self.feed else \
+                self.device.motion.travel_speed
+            self.stroke_meta["speed"] = speed
+        self.move_to((x, y))
+
+    def m_word(self, value: float, offset: int, end: int) -> None:
+        if value == 0:
+            message = self.messages.get(end, " ".join(c for c in self.comments if c))
+            self.result.pauses.append(PauseEvent(message, self.sheet_point(self.position), end,
+                                                 len(self.result.strokes)))
+        elif value == 2:
+            self.pen_state(False, None, offset)
+        elif value in (3, 5) and self.servo:
+            command = "M5" if value == 5 else f"M3 S{self.spindle:g}"
+            self.pen_state(command in self.down_commands, command, offset)
+        elif value not in (3, 5):
+            self.result.ignored.append(f"M{value:g}")
+
+    def pen_state(self, down: bool, by, offset: int) -> None:
+        if down and not self.is_down:
+            speed = self.feed or self.device.motion.draw_speed
+            self.lower(offset, pen=None, force=None, speed=speed, pen_down=by)
+        elif not down:
+            self.lift()
+        self.is_down = down
+
+
+def iter_strokes_by_layer(interpretation: Interpretation) -> Iterator[tuple[str, list[Stroke]]]:
+    """Strokes grouped by layer name, in order of first appearance."""
+    groups: dict[str, list[Stroke]] = {}
+    for stroke in interpretation.strokes:
+        groups.setdefault(stroke.layer, []).append(stroke)
+    yield from groups.items()

@@ -1,0 +1,66 @@
+"""The plot plan: what to draw, in which order, with which tool.
+
+A :class:`PlotPlan` is the hand-over point between the geometry half of foldfab
+(crease pattern, placement) and the device half (program writers, interpreters,
+estimates, previews).  Coordinates are millimetres on the sheet as the tool sees
+it: origin at the sheet's top-left corner, x to the right, y down (the vpype/SVG
+orientation).  Device writers map them to plotter coordinates.
+
+This module is imported by the command line's fast path: it must not import
+vpype or numpy at module level.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Union
+
+if TYPE_CHECKING:
+    import vpype
+
+
+@dataclass(frozen=True)
+class Tool:
+    """Resolved settings for one pass."""
+
+    pen: int
+    """HPGL pen / tool number (``SP n``); for G-code, the tool named in tool-change messages."""
+    force: float | None
+    """Device force units (see the device profile's ``[limits] force``); None = do not set."""
+    speed: float
+    """Drawing speed in mm/s."""
+    passes: int = 1
+    """Each line of the layer is drawn this many times (the whole layer is repeated)."""
+
+
+@dataclass(frozen=True)
+class Pass:
+    """Draw every line of one document layer with one tool."""
+
+    layer_id: int
+    """Key in ``PlotPlan.document.layers``."""
+    name: str
+    """"valley", "mountain", "cut" or any other layer name."""
+    tool: Tool
+
+
+@dataclass(frozen=True)
+class Pause:
+    """Stop and let the operator act (flip the sheet, change the tool...)."""
+
+    message: str
+
+
+Step = Union[Pass, Pause]
+
+
+@dataclass
+class PlotPlan:
+    """Layers to draw, the ordered steps that draw them, and the sheet they lie on."""
+
+    document: vpype.Document
+    """Lines in millimetres on the sheet as seen by the tool (origin top-left, y down)."""
+    steps: list[Step]
+    """Executed in this order; writers never reorder across steps."""
+    sheet: tuple[float, float]
+    """Sheet width and height in mm."""

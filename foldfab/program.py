@@ -1,0 +1,223 @@
+"""Plotter programs: the text a device receives, plus what foldfab knows about it.
+
+A :class:`Program` is the exact text to send (ASCII; byte offsets = character
+offsets) together with two lists a streaming sender and the interpreters need:
+
+* ``pauses``: where the operator must act.  ``offset`` is the number of bytes that
+  must have been sent *and executed* first.  HPGL has no pause command, so the HPGL
+  text only parks the pen there (``PU x,y;SP0;``) and the sender must stop sending at
+  ``offset``, wait until the plotter's buffer has drained, and prompt the operator.
+  G-code contains a real ``M0`` ending exactly at ``offset`` (GRBL holds there itself;
+  ``~`` resumes), preceded by the message as ``(comment)`` lines.
+* ``sections``: which plan step, layer, repetition and tool each part of the text
+  draws, starting at ``offset``.  The interpreters use them to label strokes.
+
+Both writers share :func:`sweeps`, which validates the plan against the device,
+converts coordinates, refuses designs outside the reachable area (never crops),
+expands ``passes`` and inserts tool-change pauses for devices without a pen changer.
+"""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Union
+
+from foldfab.errors import FoldfabError
+from foldfab.plan import Pass, Pause, PlotPlan, Tool
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from foldfab.devices import DeviceProfile, Frame
+
+
+@dataclass(frozen=True)
+class Section:
+    """One sweep over a layer: plan step ``step``, repetition ``repeat`` (0-based)."""
+
+    offset: int
+    step: int
+    layer_id: int
+    name: str
+    repeat: int
+    tool: Tool
+
+
+@dataclass(frozen=True)
+class PauseMark:
+    """The operator must act once the first ``offset`` bytes have been executed."""
+
+    offset: int
+    step: int
+    message: str
+
+
+@dataclass(frozen=True)
+class Program:
+    """The exact program text for one device, with its sections and pauses."""
+
+    text: str
+    protocol: str
+    device: str
+    sections: tuple[Section, ...]
+    pauses: tuple[PauseMark, ...]
+
+    def encode(self) -> bytes:
+        """The bytes to send."""
+        return self.text.encode("ascii")
+
+    def section_at(self, offset: int) -> Section | None:
+        """The section containing byte ``offset``, or None before the first one."""
+        index = bisect.bisect_right([s.offset for s in self.sections], offset) - 1
+        return self.sections[index] if index >= 0 else None
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """Draw ``lines`` (device units, each (N, 2) float) once with ``tool``."""
+
+    step: int
+    layer_id: int
+    name: str
+    repeat: int
+    tool: Tool
+    lines: list[np.ndarray]
+
+
+@dataclass(frozen=True)
+class Stop:
+    """Park and let the operator act."""
+
+    step: int
+    message: str
+
+
+def write_program(plan: PlotPlan, device: DeviceProfile) -> Program:
+    """Write ``plan`` in the device's language (HPGL or G-code)."""
+    if device.protocol == "hpgl":
+        from foldfab.hpgl import write_hpgl
+
+        return write_hpgl(plan, device)
+    from foldfab.gcode import write_gcode
+
+    return write_gcode(plan, device)
+
+
+class ProgramBuilder:
+    """Accumulates program text and records section and pause offsets."""
+
+    def __init__(self, protocol: str, device: DeviceProfile):
+        self.protocol, self.device = protocol, device
+        self.chunks: list[str] = []
+        self.offset = 0
+        self.sections: list[Section] = []
+        self.pauses: list[PauseMark] = []
+
+    def write(self, text: str) -> None:
+        self.chunks.append(text)
+        self.offset += len(text)
+
+    def start(self, sweep: Sweep) -> None:
+        self.sections.append(Section(self.offset, sweep.step, sweep.layer_id, sweep.name,
+                                     sweep.repeat, sweep.tool))
+
+    def pause(self, stop: Stop) -> None:
+        self.pauses.append(PauseMark(self.offset, stop.step, stop.message))
+
+    def build(self) -> Program:
+        text = "".join(self.chunks)
+        text.encode("ascii")  # writers emit ASCII only; fail loudly otherwise
+        return Program(text, self.protocol, self.device.name, tuple(self.sections),
+                       tuple(self.pauses))
+
+
+def sweeps(plan: PlotPlan, device: DeviceProfile) -> tuple[Frame, list[Union[Sweep, Stop]]]:
+    """The plan as device-ready sweeps and stops, in plan order."""
+    import numpy as np
+
+    frame = device.frame(plan.sheet)
+    layers = {}
+    for index, step in enumerate(plan.steps):
+        if isinstance(step, Pass) and step.layer_id not in plan.document.layers:
+            raise FoldfabError(
+                f"plan step {index + 1} ({step.name} pass) draws layer {step.layer_id}, which "
+                f"the document does not have (layers: {sorted(plan.document.layers)})"
+            )
+        if isinstance(step, Pass):
+            device.check_tool(step.tool, f"plan step {index + 1} ({step.name} pass)")
+        if isinstance(step, Pass) and step.layer_id not in layers:
+            lines = [np.asarray(line, dtype=complex) for line in plan.document.layers[step.layer_id]]
+            layers[step.layer_id] = [line for line in lines if len(line)]
+        elif not isinstance(step, (Pass, Pause)):
+            raise FoldfabError(f"plan step {index + 1} is a {type(step).__name__}, "
+                               "expected a Pass or a Pause")
+    drawn = [line for lines in layers.values() for line in lines]
+    if drawn:
+        check_fits(np.concatenate(drawn), plan.sheet, device)
+    converted = {lid: _to_device(frame, lines) for lid, lines in layers.items()}
+
+    result: list[Union[Sweep, Stop]] = []
+    pen = None
+    for index, step in enumerate(plan.steps):
+        if isinstance(step, Pause):
+            result.append(Stop(index, step.message))
+            continue
+        if not converted[step.layer_id]:
+            continue
+        if pen is not None and step.tool.pen != pen and not device.tool_changer:
+            result.append(Stop(index, f"Load tool {step.tool.pen} for the {step.name} pass, "
+                                      "then resume."))
+        pen = step.tool.pen
+        result.extend(Sweep(index, step.layer_id, step.name, repeat, step.tool,
+                            converted[step.layer_id]) for repeat in range(step.tool.passes))
+    return frame, result
+
+
+def _to_device(frame: Frame, lines: list[np.ndarray]) -> list[np.ndarray]:
+    """Convert many lines with one vectorized transform."""
+    import numpy as np
+
+    if not lines:
+        return []
+    points = frame.to_device(np.concatenate(lines))
+    return np.split(points, np.cumsum([len(line) for line in lines])[:-1])
+
+
+def check_fits(points: np.ndarray, sheet: tuple[float, float], device: DeviceProfile) -> None:
+    """Refuse points (sheet mm, complex) outside the sheet or the device's reach; never crop."""
+    import numpy as np
+
+    if not np.all(np.isfinite(points)):
+        raise FoldfabError("the plot plan contains non-finite coordinates (NaN or infinity); "
+                           "this is a bug in the geometry that produced it")
+    width, height = sheet
+    area_w, area_h = device.plottable_area
+    ax0, ay0, ax1, ay1 = device.frame(sheet).device_rect_on_sheet(area_w, area_h)
+    ux0, uy0, ux1, uy1 = max(ax0, 0.0), max(ay0, 0.0), min(ax1, width), min(ay1, height)
+    x0, x1 = points.real.min(), points.real.max()
+    y0, y1 = points.imag.min(), points.imag.max()
+    eps = 1e-6
+    if x0 >= ux0 - eps and x1 <= ux1 + eps and y0 >= uy0 - eps and y1 <= uy1 + eps:
+        return
+    design_w, design_h = x1 - x0, y1 - y0
+    usable_w, usable_h = max(ux1 - ux0, 0.0), max(uy1 - uy0, 0.0)
+    scales = [u / d for u, d in ((usable_w, design_w), (usable_h, design_h)) if d > 0]
+    scale = min(scales) if scales else 0.0
+    advice = ("scale it down" if scale < 1 else "it fits at scale 1: move it") + \
+        " into that area, or use a larger device or sheet"
+    raise FoldfabError(
+        f"design is {design_w:.1f} x {design_h:.1f} mm (x {x0:.1f}..{x1:.1f}, "
+        f"y {y0:.1f}..{y1:.1f} mm on the sheet) but {device.name} reaches only "
+        f"x {ux0:.1f}..{ux1:.1f}, y {uy0:.1f}..{uy1:.1f} mm of the {width:g} x {height:g} mm "
+        f"sheet (plottable area {area_w:g} x {area_h:g} mm); largest scale that fits: "
+        f"{scale:.3f}; {advice}"
+    )
+
+
+def fmt_number(value: float, decimals: int) -> str:
+    """Shortest decimal text for ``value`` rounded to ``decimals`` places ("-0" -> "0")."""
+    text = f"{value:.{decimals}f}"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
