@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from foldfab import templates
@@ -18,10 +18,19 @@ from foldfab.mesh import find_penetrations, to_trimesh
 from foldfab.reflection import reflect
 
 
-def _segment_crosses(p, q, tri, margin):
-    """Segment p-q crosses the interior of triangle ``tri`` by more than ``margin`` (Moller-Trumbore)."""
+def _segment_crosses(p, q, tri, margin, depth=0.0):
+    """Segment p-q crosses the interior of triangle ``tri`` (Moller-Trumbore).
+
+    ``margin``: how far inside the triangle (barycentric) and the segment the crossing must be;
+    ``depth``: how far (mm) both ends must lie from the triangle's plane, so paper lying flat
+    on paper (folded back within a hair) counts as touching, not crossing.
+    """
     a, b, c = tri
     e1, e2 = b - a, c - a
+    n = np.cross(e1, e2)
+    n = n / np.linalg.norm(n)
+    if min(abs(np.dot(p - a, n)), abs(np.dot(q - a, n))) < depth:
+        return False
     d = q - p
     h = np.cross(d, e2)
     det = np.dot(e1, h)
@@ -35,7 +44,7 @@ def _segment_crosses(p, q, tri, margin):
     return u > margin and v > margin and u + v < 1 - margin and margin < t < 1 - margin
 
 
-def brute_force(cp, margin):
+def brute_force(cp, margin, depth=0.0):
     """Face pairs that share no vertex in 3D and whose triangles cross (an edge through the other)."""
     tris, owner = cp.triangles()
     v = cp.vertices_3d
@@ -48,8 +57,8 @@ def brute_force(cp, margin):
             if fa == fb or faces_keys[fa] & faces_keys[fb] or cp.tab_faces[fa] or cp.tab_faces[fb]:
                 continue
             A, B = v[tris[i]], v[tris[j]]
-            if any(_segment_crosses(A[k], A[(k + 1) % 3], B, margin) for k in range(3)) or \
-               any(_segment_crosses(B[k], B[(k + 1) % 3], A, margin) for k in range(3)):
+            if any(_segment_crosses(A[k], A[(k + 1) % 3], B, margin, depth) for k in range(3)) or \
+               any(_segment_crosses(B[k], B[(k + 1) % 3], A, margin, depth) for k in range(3)):
                 found.add((min(fa, fb), max(fa, fb)))
     return found
 
@@ -71,6 +80,7 @@ def test_touching_faces_are_not_penetration():
 
 
 @settings(max_examples=25, deadline=None)
+@example(n=4, us=[0.0, 1.0, 2.0, 0.0, 0.0], vs=[0.0, 0.0, 1e-05, 0.0, 1.0, 0.0])  # folded flat onto itself
 @given(n=st.sampled_from([4, 6, 8]), us=st.lists(st.floats(-8, 8), min_size=3, max_size=6),
        vs=st.lists(st.floats(-15, 15), min_size=6, max_size=6))
 def test_agrees_with_brute_force(n, us, vs):
@@ -82,7 +92,7 @@ def test_agrees_with_brute_force(n, us, vs):
     except DesignError:
         assume(False)
     found = {tuple(p) for p in find_penetrations(cp).tolist()}
-    assert brute_force(cp, 1e-6) <= found          # every clear crossing is found
+    assert brute_force(cp, 1e-3, 1e-3) <= found    # every clear crossing is found
     assert found <= brute_force(cp, -1e-6)          # nothing found that does not (nearly) cross
 
 
