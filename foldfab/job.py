@@ -69,7 +69,7 @@ class Job:
     text: str = ""
 
 
-class _Table:
+class TomlTable:
     """A TOML table that remembers where it came from, for error messages."""
 
     def __init__(self, source: str, name: str, data: Any):
@@ -185,7 +185,7 @@ def _type_name(value: Any) -> str:
             int: "an integer", float: "a number"}.get(type(value), type(value).__name__)
 
 
-def _svg_source(table: _Table, base: Path) -> SvgSource:
+def _svg_source(table: TomlTable, base: Path) -> SvgSource:
     file = table.string("svg", required=True)
     path_value = table.get("path", 0)
     if isinstance(path_value, bool) or not isinstance(path_value, (str, int)):
@@ -202,7 +202,7 @@ def _svg_source(table: _Table, base: Path) -> SvgSource:
     return SvgSource(resolved, path_value, samples, tolerance)
 
 
-def _parse_profile(table: _Table, base: Path) -> ProfileSpec:
+def _parse_profile(table: TomlTable, base: Path) -> ProfileSpec:
     if table.has("points") == table.has("svg"):
         table.fail(None, "give either points = [[u, v], ...] or svg = \"file.svg\" (exactly one)")
     offset = table.pair("offset", (0.0, 0.0))
@@ -214,7 +214,7 @@ def _parse_profile(table: _Table, base: Path) -> ProfileSpec:
     return spec
 
 
-def _parse_trajectory(table: _Table, base: Path) -> TrajectorySpec:
+def _parse_trajectory(table: TomlTable, base: Path) -> TrajectorySpec:
     if table.has("svg"):
         template = table.string("template", "polyline", choices=("polyline",))
         spec = TrajectorySpec(template, svg=_svg_source(table, base))
@@ -237,7 +237,7 @@ def _parse_trajectory(table: _Table, base: Path) -> TrajectorySpec:
     return spec
 
 
-def _parse_crease(table: _Table) -> CreaseSpec:
+def _parse_crease(table: TomlTable) -> CreaseSpec:
     spec = CreaseSpec(flat_angle=table.number("flat_angle", 1.0, minimum=0.0, maximum=180.0),
                       glue_tab=table.number("glue_tab", 0.0, minimum=0.0))
     table.check_unknown()
@@ -258,15 +258,15 @@ def parse_job(text: str, path: str | Path = "<job>") -> Job:
         raise FoldfabError(f"{source}: [{unknown[0]}]: unknown table; expected one of: "
                            + ", ".join(f"[{t}]" for t in sorted(allowed)))
     base = path.parent
-    design = _Table(source, "design", data.get("design", {}))
+    design = TomlTable(source, "design", data.get("design", {}))
     name = design.string("name", path.stem)
     design.check_unknown()
     for required in ("profile", "trajectory"):
         if required not in data:
             raise FoldfabError(f"{source}: [{required}]: missing table; every job needs [profile] and [trajectory]")
-    profile = _parse_profile(_Table(source, "profile", data["profile"]), base)
-    trajectory = _parse_trajectory(_Table(source, "trajectory", data["trajectory"]), base)
-    crease = _parse_crease(_Table(source, "crease", data.get("crease", {})))
+    profile = _parse_profile(TomlTable(source, "profile", data["profile"]), base)
+    trajectory = _parse_trajectory(TomlTable(source, "trajectory", data["trajectory"]), base)
+    crease = _parse_crease(TomlTable(source, "crease", data.get("crease", {})))
     fabrication = data.get("fabrication", {})
     if not isinstance(fabrication, dict):
         raise FoldfabError(f"{source}: [fabrication]: expected a table")
