@@ -1,0 +1,192 @@
+"""Fabrication: a design and a device profile become a plot plan, then a program.
+
+The job's ``[fabrication]`` table chooses the strategy (``force``,
+``perforate``, ``two-sided``), the sheet, margin, rotation, scale, the travel
+optimization and per-layer tool overrides.  Layers are one vpype ``Document``:
+valley, mountain, cut, in that order; flat creases are never scored and the
+outline is cut last, as closed loops, so the sheet does not move while it is
+scored.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from foldfab.design import Design
+from foldfab.devices import DeviceProfile, parse_sheet
+from foldfab.errors import FoldfabError
+from foldfab.job import TomlTable
+from foldfab.plan import Pass, Pause, PlotPlan
+
+STRATEGIES = ("force", "perforate", "two-sided")
+LAYERS = {"valley": (1, "#0000ff"), "mountain": (2, "#ff0000"), "cut": (3, "#000000")}
+FLIP_EDGES = ("left", "top")
+
+
+@dataclass(frozen=True)
+class FabricationSpec:
+    """The validated ``[fabrication]`` table."""
+
+    strategy: str = "force"
+    sheet: tuple[float, float] | None = None     # None: the device's default sheet
+    margin: float = 10.0
+    rotate: str = "auto"                          # auto | yes | no
+    scale: float = 1.0
+    optimize: str = "greedy"                      # none | greedy | two-opt
+    flip_edge: str = "left"
+    perforation: dict[str, tuple[float, ...]] = field(
+        default_factory=lambda: {"valley": (1.0, 1.0), "mountain": (2.0, 1.0, 0.5, 1.0)})
+    clearance: float = 1.0
+    layers: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+
+def parse_fabrication(data: dict, source: str) -> FabricationSpec:
+    """Validate a job's ``[fabrication]`` table; errors name the key."""
+    from foldfab.optimize import METHODS
+
+    table = TomlTable(source, "fabrication", data)
+    defaults = FabricationSpec()
+    strategy = table.string("strategy", "force", choices=STRATEGIES)
+    sheet = None
+    if table.has("sheet"):
+        sheet = parse_sheet(table.get("sheet"))
+        if sheet is None:
+            table.fail("sheet", f"expected \"A4\", \"A3\", \"Letter\" (optionally \"landscape\") or [width, height] in mm, "
+                                f"got {table.get('sheet')!r}")
+    margin = table.number("margin", defaults.margin, minimum=0.0)
+    rotate_value = table.get("rotate", "auto")
+    if rotate_value not in ("auto", True, False):
+        table.fail("rotate", f"expected \"auto\", true or false, got {rotate_value!r}")
+    rotate = {"auto": "auto", True: "yes", False: "no"}[rotate_value]
+    scale = table.number("scale", 1.0, exclusive_minimum=0.0)
+    optimize = table.string("optimize", "greedy", choices=METHODS)
+    flip_edge = table.string("flip_edge", "left", choices=FLIP_EDGES)
+    perforation = dict(defaults.perforation)
+    clearance = defaults.clearance
+    if table.has("perforate"):
+        sub = TomlTable(source, "fabrication.perforate", table.get("perforate"))
+        for kind in ("valley", "mountain"):
+            if sub.has(kind):
+                pattern = sub.get(kind)
+                if (not isinstance(pattern, list) or len(pattern) < 2 or len(pattern) % 2
+                        or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0 for v in pattern)):
+                    sub.fail(kind, f"expected an even-length list of positive mm [cut, gap, ...], got {pattern!r}")
+                perforation[kind] = tuple(float(v) for v in pattern)
+        clearance = sub.number("clearance", clearance, minimum=0.0)
+        sub.check_unknown()
+    layers: dict[str, dict[str, Any]] = {}
+    if table.has("layers"):
+        sub = TomlTable(source, "fabrication.layers", table.get("layers"))
+        for name in LAYERS:
+            if sub.has(name):
+                value = sub.get(name)
+                if not isinstance(value, dict):
+                    sub.fail(name, "expected a table of tool settings (pen, force, speed, passes)")
+                layers[name] = value
+        sub.check_unknown()
+    table.check_unknown()
+    return FabricationSpec(strategy, sheet, margin, rotate, scale, optimize, flip_edge, perforation, clearance, layers)
+
+
+def flip_message(spec: FabricationSpec, device: DeviceProfile) -> str:
+    """The operator's instruction at the flip of a two-sided job."""
+    axis = "left-right (about the vertical axis)" if spec.flip_edge == "left" else "top-bottom (about the horizontal axis)"
+    return (f"Valleys are scored. Flip the sheet {axis}, "
+            f"put its corner back against the {device.origin} registration corner of {device.name}, then continue: "
+            "mountains are scored on the back, then the outline is cut.")
+
+
+def build_plan(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None) -> PlotPlan:
+    """The plot plan of ``design`` on ``device``: placed, layered, optimized, never cropped."""
+    import vpype as vp
+
+    from foldfab import scoring
+    from foldfab.optimize import optimize_plan
+    from foldfab.placement import fit, mirror
+
+    if spec is None:
+        spec = parse_fabrication(design.job.fabrication, str(design.job.path))
+    cp = design.crease_pattern
+    sheet = spec.sheet or device.sheet
+    frame = device.frame(sheet)
+    area = frame.device_rect_on_sheet(*device.plottable_area)
+    pts = cp.vertices[:, 0] + 1j * cp.vertices[:, 1]
+    bounds = (complex(pts.real.min(), pts.imag.min()), complex(pts.real.max(), pts.imag.max()))
+    try:
+        placement = fit(bounds, sheet, area, spec.margin, spec.scale, spec.rotate)
+    except FoldfabError as exc:
+        raise FoldfabError(f"{design.job.path}: {device.name}: {exc}") from None
+
+    creases = {"valley": scoring.crease_segments(cp, "V"), "mountain": scoring.crease_segments(cp, "M")}
+    lines = {k: [placement.apply(seg) for seg in v] for k, v in creases.items()}
+    lines["cut"] = [placement.apply(loop) for loop in scoring.outline_loops(cp)]
+    if spec.strategy == "two-sided":
+        flip = (lambda p: mirror(p, sheet[0])) if spec.flip_edge == "left" else \
+               (lambda p: p.real + 1j * (sheet[1] - p.imag))
+        lines["mountain"] = [flip(p) for p in lines["mountain"]]
+        lines["cut"] = [flip(p) for p in lines["cut"]]
+
+    doc = vp.Document()
+    doc.page_size = sheet
+    steps: list = []
+    source = f"{design.job.path}: [fabrication.layers]"
+    for name, (layer_id, colour) in LAYERS.items():
+        if spec.strategy == "two-sided" and name == "mountain":
+            steps.append(Pause(flip_message(spec, device)))
+        collection = vp.LineCollection(lines[name])
+        collection.set_property("vp_name", name)
+        collection.set_property("vp_color", vp.Color(colour))
+        doc.add(collection, layer_id, with_metadata=True)
+        steps.append(Pass(layer_id, name, device.tool_for(name, spec.layers.get(name), source)))
+    plan = PlotPlan(doc, steps, sheet)
+    park = _park(device, sheet)
+    perforated = frozenset(("valley", "mountain")) if spec.strategy == "perforate" else frozenset()
+    plan = optimize_plan(plan, spec.optimize, 1.0 / device.units_per_mm, park, keep_vertices=perforated)
+    for step in plan.steps:
+        if isinstance(step, Pass) and step.name in perforated:
+            # Dashes follow the optimized creases in order; every crease vertex gets its clearance.
+            layer = plan.document.layers[step.layer_id]
+            segments = [np.column_stack([line[:-1], line[1:]]) for line in layer]
+            dashes = scoring.perforate(np.concatenate(segments) if segments else np.zeros((0, 2), complex),
+                                       spec.perforation[step.name], spec.clearance)
+            perforated_layer = vp.LineCollection(list(dashes))
+            for key, value in layer.metadata.items():
+                perforated_layer.set_property(key, value)
+            plan.document.layers[step.layer_id] = perforated_layer
+    return plan
+
+
+@dataclass(frozen=True)
+class Fabrication:
+    """A design made ready for one device: the plan, its program, and the travel it saves."""
+
+    spec: FabricationSpec
+    plan: PlotPlan
+    program: Any            # foldfab.program.Program
+    travel_before: dict     # pen-up travel of the unoptimized plan (optimize.travel)
+    travel_after: dict
+
+
+def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None) -> Fabrication:
+    """Plan, optimize and write the program of ``design`` for ``device``."""
+    from dataclasses import replace
+
+    from foldfab.optimize import travel
+    from foldfab.program import write_program
+
+    if spec is None:
+        spec = parse_fabrication(design.job.fabrication, str(design.job.path))
+    plan = build_plan(design, device, spec)
+    park = _park(device, plan.sheet)
+    before = travel(build_plan(design, device, replace(spec, optimize="none")), park) \
+        if spec.optimize != "none" else travel(plan, park)
+    return Fabrication(spec, plan, write_program(plan, device), before, travel(plan, park))
+
+
+def _park(device: DeviceProfile, sheet: tuple[float, float]) -> complex:
+    """The device's park position on the sheet (where the pen starts and ends)."""
+    frame = device.frame(sheet)
+    return complex(*frame.to_sheet(np.array([device.motion.park]) * device.units_per_mm)[0])

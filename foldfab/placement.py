@@ -1,0 +1,80 @@
+"""Placing a design on the sheet: scale, rotate by 90 degrees to fit, centre, check the fit.
+
+Crease-pattern millimetres (x right, y up) become sheet millimetres as the tool
+sees them (origin at the sheet's top-left corner, y down).  A design that does
+not fit the sheet (less its margins) or the device's plottable area is an error
+that states both sizes and the largest scale that would fit: nothing is ever
+cropped.  Pure geometry.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from foldfab.errors import FoldfabError
+
+
+@dataclass(frozen=True)
+class Placement:
+    """An affine map from crease-pattern mm to sheet mm: p_sheet = origin + scale * R(p)."""
+
+    scale: float
+    rotated: bool
+    origin: complex      # where the design's bounding-box corner lands
+    lo: complex          # the design's bounding-box minimum corner (crease-pattern coordinates)
+    size: tuple[float, float]   # placed width and height, mm
+
+    def apply(self, points: np.ndarray) -> np.ndarray:
+        """Map complex crease-pattern points to complex sheet points."""
+        p = points - self.lo
+        if self.rotated:   # 90 degrees: crease-pattern x runs down the sheet, y runs right
+            x, y = p.imag, p.real
+        else:              # y up in the crease pattern, y down on the sheet
+            x, y = p.real, -p.imag
+        out = self.scale * (x + 1j * y)
+        return out + self.origin
+
+
+def fit(bounds: tuple[complex, complex], sheet: tuple[float, float], area: tuple[float, float, float, float],
+        margin: float, scale: float, rotate: str) -> Placement:
+    """Centre the design in the usable region: the sheet less ``margin``, within the device ``area`` (x0, y0, x1, y1).
+
+    ``rotate`` is "auto" (turn by 90 degrees only when that is needed to fit), "yes" or "no".
+    """
+    lo, hi = bounds
+    w, h = hi.real - lo.real, hi.imag - lo.imag
+    x0 = max(margin, area[0])
+    y0 = max(margin, area[1])
+    x1 = min(sheet[0] - margin, area[2])
+    y1 = min(sheet[1] - margin, area[3])
+    room = (x1 - x0, y1 - y0)
+    if room[0] <= 0 or room[1] <= 0:
+        raise FoldfabError(f"the sheet {sheet[0]:g} x {sheet[1]:g} mm with margin {margin:g} mm leaves no room inside "
+                           f"the device's plottable area; reduce [fabrication].margin or choose another sheet")
+
+    def fits(rot: bool) -> bool:
+        pw, ph = (h, w) if rot else (w, h)
+        return scale * pw <= room[0] + 1e-9 and scale * ph <= room[1] + 1e-9
+
+    options = {"no": [False], "yes": [True], "auto": [False, True]}[rotate]
+    chosen = next((rot for rot in options if fits(rot)), None)
+    if chosen is None:
+        best = max(min(room[0] / (h if rot else w), room[1] / (w if rot else h)) for rot in options)
+        raise FoldfabError(
+            f"the design is {w * scale:.1f} x {h * scale:.1f} mm at scale {scale:g}, but only {room[0]:.1f} x {room[1]:.1f} mm "
+            f"is usable (sheet {sheet[0]:g} x {sheet[1]:g} mm less {margin:g} mm margins, within the device's plottable area); "
+            f"the largest scale that fits is {best:.4f}{'' if rotate != 'no' else ' (rotation is off)'}: "
+            f"set [fabrication].scale, a larger sheet, or a smaller margin")
+    pw, ph = ((h, w) if chosen else (w, h))
+    pw, ph = pw * scale, ph * scale
+    corner = complex(x0 + (room[0] - pw) / 2, y0 + (room[1] - ph) / 2)
+    # The bounding-box minimum of the rotated/flipped design lands on the corner.
+    origin = corner if chosen else corner + 1j * ph
+    return Placement(scale, chosen, origin, lo, (pw, ph))
+
+
+def mirror(points: np.ndarray, sheet_width: float) -> np.ndarray:
+    """Where front-side points lie when the sheet is flipped about its left-right axis (x -> W - x)."""
+    return (sheet_width - points.real) + 1j * points.imag
