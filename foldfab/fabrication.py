@@ -99,27 +99,32 @@ def flip_message(spec: FabricationSpec, device: DeviceProfile) -> str:
             "mountains are scored on the back, then the outline is cut.")
 
 
+def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
+    """Where ``design`` goes on the sheet: (placement, sheet size); a design that does not fit is an error."""
+    from foldfab.placement import fit
+
+    sheet = spec.sheet or device.sheet
+    area = device.frame(sheet).device_rect_on_sheet(*device.plottable_area)
+    pts = design.crease_pattern.vertices
+    bounds = (complex(*pts.min(axis=0)), complex(*pts.max(axis=0)))
+    try:
+        return fit(bounds, sheet, area, spec.margin, spec.scale, spec.rotate), sheet
+    except FoldfabError as exc:
+        raise FoldfabError(f"{design.job.path}: {device.name}: {exc}") from None
+
+
 def build_plan(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None) -> PlotPlan:
     """The plot plan of ``design`` on ``device``: placed, layered, optimized, never cropped."""
     import vpype as vp
 
     from foldfab import scoring
     from foldfab.optimize import optimize_plan
-    from foldfab.placement import fit, mirror
+    from foldfab.placement import mirror
 
     if spec is None:
         spec = parse_fabrication(design.job.fabrication, str(design.job.path))
     cp = design.crease_pattern
-    sheet = spec.sheet or device.sheet
-    frame = device.frame(sheet)
-    area = frame.device_rect_on_sheet(*device.plottable_area)
-    pts = cp.vertices[:, 0] + 1j * cp.vertices[:, 1]
-    bounds = (complex(pts.real.min(), pts.imag.min()), complex(pts.real.max(), pts.imag.max()))
-    try:
-        placement = fit(bounds, sheet, area, spec.margin, spec.scale, spec.rotate)
-    except FoldfabError as exc:
-        raise FoldfabError(f"{design.job.path}: {device.name}: {exc}") from None
-
+    placement, sheet = place(design, device, spec)
     creases = {"valley": scoring.crease_segments(cp, "V"), "mountain": scoring.crease_segments(cp, "M")}
     lines = {k: [placement.apply(seg) for seg in v] for k, v in creases.items()}
     lines["cut"] = [placement.apply(loop) for loop in scoring.outline_loops(cp)]
@@ -164,6 +169,7 @@ class Fabrication:
     """A design made ready for one device: the plan, its program, and the travel it saves."""
 
     spec: FabricationSpec
+    placement: Any          # foldfab.placement.Placement: crease-pattern mm -> sheet mm (front side)
     plan: PlotPlan
     program: Any            # foldfab.program.Program
     travel_before: dict     # pen-up travel of the unoptimized plan (optimize.travel)
@@ -183,7 +189,8 @@ def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | Non
     park = _park(device, plan.sheet)
     before = travel(build_plan(design, device, replace(spec, optimize="none")), park) \
         if spec.optimize != "none" else travel(plan, park)
-    return Fabrication(spec, plan, write_program(plan, device), before, travel(plan, park))
+    placement, _ = place(design, device, spec)
+    return Fabrication(spec, placement, plan, write_program(plan, device), before, travel(plan, park))
 
 
 def _park(device: DeviceProfile, sheet: tuple[float, float]) -> complex:

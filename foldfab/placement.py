@@ -9,6 +9,7 @@ cropped.  Pure geometry.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,6 +63,7 @@ def fit(bounds: tuple[complex, complex], sheet: tuple[float, float], area: tuple
     chosen = next((rot for rot in options if fits(rot)), None)
     if chosen is None:
         best = max(min(room[0] / (h if rot else w), room[1] / (w if rot else h)) for rot in options)
+        best = math.floor(best * 1e4) / 1e4  # rounded down, so the scale we suggest does fit
         raise FoldfabError(
             f"the design is {w * scale:.1f} x {h * scale:.1f} mm at scale {scale:g}, but only {room[0]:.1f} x {room[1]:.1f} mm "
             f"is usable (sheet {sheet[0]:g} x {sheet[1]:g} mm less {margin:g} mm margins, within the device's plottable area); "

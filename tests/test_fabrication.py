@@ -1,0 +1,187 @@
+"""Fabrication end to end: job -> plan -> program -> interpreter gives back exactly the creases and outline."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from foldfab.design import load_design
+from foldfab.devices import load_device
+from foldfab.errors import FoldfabError
+from foldfab.fabrication import fabricate, parse_fabrication
+from foldfab.interpret import interpret
+from foldfab.scoring import crease_segments, outline_loops
+
+ROOT = Path(__file__).resolve().parent.parent
+JOBS = sorted((ROOT / "jobs").glob("*.toml"))
+DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
+
+
+def spec(**kw):
+    base = {"sheet": "A3", "margin": 5, "scale": 0.4}
+    base.update(kw)
+    return parse_fabrication(base, "test")
+
+
+def _dist_to_segments(points: np.ndarray, segs: np.ndarray) -> np.ndarray:
+    """Distance of each complex point to the nearest of the (S, 2) complex segments."""
+    a, b = segs[:, 0][None, :], segs[:, 1][None, :]
+    d = b - a
+    t = np.clip(((points[:, None] - a) * np.conj(d)).real / np.maximum(np.abs(d) ** 2, 1e-30), 0, 1)
+    return np.abs(points[:, None] - (a + t * d)).min(axis=1)
+
+
+def _samples(segs: np.ndarray, n: int = 7) -> np.ndarray:
+    t = np.linspace(0, 1, n)
+    return (segs[:, :1] + (segs[:, 1:] - segs[:, :1]) * t[None, :]).ravel()
+
+
+def stroke_segments(run, layer: str) -> np.ndarray:
+    segs = [np.column_stack([s.points[:-1, 0] + 1j * s.points[:-1, 1], s.points[1:, 0] + 1j * s.points[1:, 1]])
+            for s in run.strokes if s.layer == layer and len(s.points) > 1]
+    return np.concatenate(segs) if segs else np.zeros((0, 2), complex)
+
+
+def expected_segments(design, placement, layer: str) -> np.ndarray:
+    cp = design.crease_pattern
+    if layer == "cut":
+        segs = np.concatenate([np.column_stack([loop[:-1], loop[1:]]) for loop in outline_loops(cp)])
+    else:
+        segs = crease_segments(cp, {"valley": "V", "mountain": "M"}[layer])
+    return placement.apply(segs)
+
+
+@pytest.mark.parametrize("device_name", DEVICES)
+@pytest.mark.parametrize("job", JOBS, ids=[j.stem for j in JOBS])
+def test_round_trip_every_job_every_device(job, device_name):
+    """Every non-flat crease and the outline come back on their layer within one plotter unit, nothing else."""
+    design = load_design(job)
+    device = load_device(device_name)
+    fab = fabricate(design, device, spec())
+    run = interpret(fab.program, device, fab.plan.sheet)
+    tol = 1.0 / device.units_per_mm + 1e-9 + 0.5 / device.units_per_mm  # rounding + simplification bound
+    for layer in ("valley", "mountain", "cut"):
+        want = expected_segments(design, fab.placement, layer)
+        got = stroke_segments(run, layer)
+        if len(want) == 0:
+            assert len(got) == 0
+            continue
+        assert _dist_to_segments(_samples(want), got).max() <= tol, f"{layer}: a crease is missing"
+        assert _dist_to_segments(_samples(got), want).max() <= tol, f"{layer}: something extra is drawn"
+    # flat creases are never scored, the outline is cut last as closed loops
+    assert [s.layer for s in run.strokes][-1] == "cut"
+    cut = [s for s in run.strokes if s.layer == "cut"]
+    assert all(np.allclose(s.points[0], s.points[-1], atol=tol) for s in cut)
+    names = [s.layer for s in run.strokes]
+    assert names == sorted(names, key=["valley", "mountain", "cut"].index), "layers were reordered"
+
+
+@pytest.mark.parametrize("device_name", DEVICES)
+def test_output_is_deterministic(device_name):
+    device = load_device(device_name)
+    design = load_design(ROOT / "jobs" / "vase-svg.toml")
+    a = fabricate(design, device, spec(strategy="two-sided")).program.text
+    b = fabricate(load_design(ROOT / "jobs" / "vase-svg.toml"), device, spec(strategy="two-sided")).program.text
+    assert a == b
+
+
+def test_perforation_duty_cycle_and_clearance():
+    design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
+    device = load_device("graphtec-ce6000")
+    fab = fabricate(design, device, spec(strategy="perforate", scale=1.0, sheet="A3 landscape"))
+    run = interpret(fab.program, device, fab.plan.sheet)
+    for layer, pattern in (("valley", (1.0, 1.0)), ("mountain", (2.0, 1.0, 0.5, 1.0))):
+        duty = sum(pattern[0::2]) / sum(pattern)
+        creases = expected_segments(design, fab.placement, layer)
+        dashes = stroke_segments(run, layer)
+        dash_len = np.abs(dashes[:, 1] - dashes[:, 0])
+        assert dash_len.max() <= max(pattern[0::2]) + 0.05
+        for seg in creases:
+            length = abs(seg[1] - seg[0])
+            usable = length - 2 * 1.0
+            if usable < 10 * sum(pattern):
+                continue
+            on = _dist_to_segments(np.concatenate([dashes[:, 0], dashes[:, 1]]), seg[None, :]) < 0.03
+            mine = on.reshape(2, -1).all(axis=0)
+            cut = dash_len[mine].sum()
+            assert abs(cut / usable - duty) <= sum(pattern) / usable + 0.01
+            # nothing within the clearance of the crease's ends
+            ends = np.concatenate([dashes[mine, 0], dashes[mine, 1]])
+            assert np.abs(ends[:, None] - seg[None, :]).min() >= 1.0 - 0.03
+
+
+def test_two_sided_mountains_are_the_exact_mirror():
+    design = load_design(ROOT / "jobs" / "star.toml")
+    device = load_device("graphtec-ce6000")
+    fab = fabricate(design, device, spec(strategy="two-sided", scale=0.6))
+    run = interpret(fab.program, device, fab.plan.sheet)
+    assert len(run.pauses) == 1 and "Flip the sheet" in run.pauses[0].message
+    width = fab.plan.sheet[0]
+    front = fab.placement.apply(crease_segments(design.crease_pattern, "M"))
+    back = stroke_segments(run, "mountain")
+    unmirrored = (width - back.real) + 1j * back.imag
+    tol = 1.5 / device.units_per_mm
+    assert _dist_to_segments(_samples(front), unmirrored).max() <= tol
+    assert _dist_to_segments(_samples(unmirrored), front).max() <= tol
+    # valleys stay on the front, unmirrored
+    assert _dist_to_segments(_samples(fab.placement.apply(crease_segments(design.crease_pattern, "V"))),
+                             stroke_segments(run, "valley")).max() <= tol
+    # the pause comes after every valley and before any mountain
+    assert run.pauses[0].strokes_before == sum(s.layer == "valley" for s in run.strokes)
+
+
+def test_optimization_reduces_travel_and_reports_every_part():
+    design = load_design(ROOT / "jobs" / "vase-svg.toml")
+    fab = fabricate(design, load_device("roland-gx24"), spec())
+    assert fab.travel_after["total"] < 0.5 * fab.travel_before["total"]
+    assert {"from park", "valley", "mountain", "cut", "between layers", "to park"} <= set(fab.travel_after["layers"])
+    assert fab.travel_after["total"] == pytest.approx(sum(fab.travel_after["layers"].values()))
+
+
+def test_design_too_big_names_sizes_and_largest_scale():
+    """The message states both sizes and the largest scale; that scale fits, a hair more does not."""
+    import re
+
+    design = load_design(ROOT / "jobs" / "vase-svg.toml")
+    device = load_device("hp7475a")
+    with pytest.raises(FoldfabError) as info:
+        fabricate(design, device, spec(sheet="A4", scale=1.0))
+    message = str(info.value)
+    assert re.search(r"the design is 371\.4 x 73\.9 mm at scale 1, but only [\d.]+ x [\d.]+ mm is usable", message)
+    assert "sheet 210 x 297 mm" in message
+    largest = float(re.search(r"largest scale that fits is ([\d.]+)", message).group(1))
+    fab = fabricate(design, device, spec(sheet="A4", scale=largest))
+    lo, hi = fab.plan.document.bounds()[:2], fab.plan.document.bounds()[2:]
+    x0, y0, x1, y1 = device.frame(fab.plan.sheet).device_rect_on_sheet(*device.plottable_area)
+    assert lo[0] >= max(5, x0) - 1e-6 and lo[1] >= max(5, y0) - 1e-6
+    assert hi[0] <= min(205, x1) + 1e-6 and hi[1] <= min(292, y1) + 1e-6
+    with pytest.raises(FoldfabError, match="largest scale"):
+        fabricate(design, device, spec(sheet="A4", scale=largest * 1.001))
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"strategy": "laser"}, r"\[fabrication\]\.strategy: expected one of"),
+    ({"sheet": "B5"}, r"\[fabrication\]\.sheet: expected"),
+    ({"scale": 0}, r"\[fabrication\]\.scale: must be greater than 0"),
+    ({"optimize": "best"}, r"\[fabrication\]\.optimize"),
+    ({"perforate": {"valley": [1, 1, 1]}}, r"\[fabrication\.perforate\]\.valley: expected an even-length list"),
+    ({"layers": {"fold": {}}}, r"\[fabrication\.layers\]\.fold: unknown key"),
+    ({"colour": "red"}, r"\[fabrication\]\.colour: unknown key"),
+])
+def test_bad_fabrication_tables(table, message):
+    with pytest.raises(FoldfabError, match=message):
+        parse_fabrication(table, "job.toml")
+
+
+def test_layer_override_reaches_the_program():
+    design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
+    device = load_device("graphtec-ce6000")
+    fab = fabricate(design, device, spec(layers={"cut": {"force": 30, "passes": 2}}))
+    run = interpret(fab.program, device, fab.plan.sheet)
+    cut = [s for s in run.strokes if s.layer == "cut"]
+    assert len(cut) == 2 and all(s.force == 30 for s in cut)
+    with pytest.raises(FoldfabError, match=r"layers\.cut\.force"):
+        fabricate(design, device, spec(layers={"cut": {"force": "hard"}}))
