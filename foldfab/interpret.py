@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Iterator
+from typing import TYPE_CHECKING
 
 from foldfab.errors import FoldfabError
 
@@ -129,10 +129,17 @@ class HPGLTokenizer:
         state, self._state = self._state, "idle"
         if state == "label":
             return HPGLCommand(self._name, (), self._start, text=text)
-        numbers = _NUMBER.findall(text)
-        leftover = _NUMBER.sub(" ", text).replace(separator, " ").strip()
-        error = f"cannot read parameters {text!r}" if leftover else None
-        return HPGLCommand(self._name, tuple(float(v) for v in numbers), self._start, error=error)
+        numbers, end, bad = [], 0, False
+        for match in _NUMBER.finditer(text):
+            gap = text[end:match.start()]
+            # numbers are separated by a separator, whitespace or the next one's sign
+            bad |= bool(gap.replace(separator, " ").strip()) or \
+                (bool(numbers) and not gap and match.group()[0] not in "+-")
+            numbers.append(float(match.group()))
+            end = match.end()
+        bad |= bool(text[end:].replace(separator, " ").strip())
+        error = f"cannot read parameters {text!r}" if bad else None
+        return HPGLCommand(self._name, tuple(numbers), self._start, error=error)
 
 
 @dataclass
@@ -473,10 +480,3 @@ class _GcodeMachine(_Machine):
             self.lift()
         self.is_down = down
 
-
-def iter_strokes_by_layer(interpretation: Interpretation) -> Iterator[tuple[str, list[Stroke]]]:
-    """Strokes grouped by layer name, in order of first appearance."""
-    groups: dict[str, list[Stroke]] = {}
-    for stroke in interpretation.strokes:
-        groups.setdefault(stroke.layer, []).append(stroke)
-    yield from groups.items()

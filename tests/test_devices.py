@@ -1,0 +1,183 @@
+"""Device profiles: the shipped ones, lookup order, schema errors, tools, frames, packaging."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from foldfab.devices import list_devices, load_device, parse_sheet
+from foldfab.errors import FoldfabError
+from foldfab.plan import Tool
+
+SHIPPED = ["graphtec-ce6000", "grbl", "hp7475a", "roland-gx24"]
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_shipped_profiles_load():
+    assert set(SHIPPED) <= set(list_devices())
+    for name in SHIPPED:
+        device = load_device(name)
+        assert device.name == name and Path(device.source).name == f"{name}.toml"
+        assert {"valley", "mountain", "cut"} <= set(device.layers)
+    hp, grbl = load_device("hp7475a"), load_device("grbl")
+    assert (hp.protocol, hp.dialect, hp.units_per_mm, hp.sheet) == ("hpgl", "hp", 40.0, (297.0, 210.0))
+    assert (grbl.protocol, grbl.units_per_mm, grbl.buffer.size, grbl.buffer.flow_control) == \
+        ("gcode", 1.0, 128, "grbl")
+    assert load_device("graphtec-ce6000").serial.rtscts
+
+
+def test_device_module_imports_without_numpy_or_vpype():
+    code = ("import sys, foldfab.devices as d; d.load_device('grbl'); "
+            "assert not {'numpy', 'vpype'} & set(sys.modules), sorted(sys.modules)")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+
+
+def test_lookup_order_path_user_builtin(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path))
+    user = tmp_path / "foldfab" / "devices"
+    user.mkdir(parents=True)
+    text = Path(load_device("grbl").source).read_text()
+    (user / "grbl.toml").write_text(text.replace('model = "', 'model = "mine: '))
+    (user / "bench.toml").write_text(text.replace('name = "grbl"', 'name = "bench"'))
+    assert load_device("grbl").model.startswith("mine: ")
+    assert load_device("bench").name == "bench" and "bench" in list_devices()
+    elsewhere = tmp_path / "other.toml"
+    elsewhere.write_text(text.replace('model = "', 'model = "path: '))
+    assert load_device(str(elsewhere)).model.startswith("path: ")
+    assert load_device("hp7475a").source.endswith("hp7475a.toml")  # built-in still found
+
+
+def test_unknown_device_lists_the_known_ones():
+    with pytest.raises(FoldfabError) as error:
+        load_device("plotomatic")
+    message = str(error.value)
+    assert "unknown device 'plotomatic'" in message
+    assert all(name in message for name in SHIPPED)
+    with pytest.raises(FoldfabError, match="no such device profile file"):
+        load_device("missing/profile.toml")
+
+
+def broken(tmp_path, edit) -> str:
+    """Write the grbl profile through ``edit`` and return the FoldfabError message."""
+    path = tmp_path / "broken.toml"
+    path.write_text(edit(Path(load_device("grbl").source).read_text()))
+    with pytest.raises(FoldfabError) as error:
+        load_device(str(path))
+    message = str(error.value)
+    assert str(path) in message and "\n" not in message
+    return message
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda t: t.replace('protocol = "gcode"\n', ""), ["missing key 'protocol'", "add it"]),
+    (lambda t: t.replace("baudrate = 115200", 'baudrate = "fast"'),
+     ["key 'serial.baudrate'", "expected a baud rate", "'fast'"]),
+    (lambda t: t.replace("[serial]", "colour = \"red\"\n[serial]"),
+     ["unknown key 'colour'", "remove it"]),
+    (lambda t: t.replace("speed = 15", "speed = 15\nsped = 3"), ["unknown key 'layers.cut.sped'"]),
+    (lambda t: t.replace("[layers.cut]", "[layers.cut_]"), ["missing table '[layers.cut]'"]),
+    (lambda t: t.replace('origin = "bottom-left"', 'origin = "top-left"'),
+     ["key 'origin'", "'bottom-left'"]),
+    (lambda t: t.replace('y_axis = "up"', 'y_axis = "left"'), ["key 'y_axis'", "perpendicular"]),
+    (lambda t: t.replace("pen_down = -1.0", 'pen_down = "M3 S20"'),
+     ["key 'layers.cut.pen_down'", "same kind as gcode.pen_up"]),
+    (lambda t: t.replace("pen_down = -1.0", "pen_down = 4"), ["key 'layers.cut.pen_down'"]),
+    (lambda t: t.replace("speed = 15", "speed = 15\nforce = 3"), ["key 'layers.cut.force'"]),
+    (lambda t: t.replace('flow_control = "grbl"', 'flow_control = "xonxoff"'),
+     ["key 'buffer.flow_control'", "serial.xonxoff = true"]),
+    (lambda t: t.replace("park = [0, 0]", "park = [400, 0]"), ["key 'motion.park'"]),
+    (lambda t: t.replace('sheet = "A4"', 'sheet = "B5"'), ["key 'sheet'", "'B5'"]),
+    (lambda t: t.replace("z_speed = 10", ""), ["missing key 'gcode.z_speed'"]),
+    (lambda t: t + "\n[unused]\nx = 1\n", ["unknown key 'unused'"]),
+    (lambda t: t.replace("name =", "name = [", 1), ["not valid TOML"]),
+])
+def test_schema_errors_name_file_and_key(tmp_path, edit, words):
+    message = broken(tmp_path, edit)
+    for word in words:
+        assert word in message, message
+
+
+def test_hpgl_only_and_gcode_only_keys(tmp_path):
+    message = broken(tmp_path, lambda t: t.replace('dialect = "grbl"', 'dialect = "grbl"\nunits_per_mm = 40'))
+    assert "key 'units_per_mm'" in message and "remove it" in message
+    path = tmp_path / "hp.toml"
+    path.write_text(Path(load_device("hp7475a").source).read_text() + "\n[gcode]\npen_up = 3\n")
+    with pytest.raises(FoldfabError, match=r"key 'gcode'.*no \[gcode\] table in an HPGL profile"):
+        load_device(str(path))
+    path.write_text(Path(load_device("hp7475a").source).read_text().replace(
+        "[layers.valley]", "[layers.valley]\nforce = 20"))
+    with pytest.raises(FoldfabError, match="layers.valley.force.*no force"):
+        load_device(str(path))
+
+
+def test_tool_for_merges_and_validates_overrides():
+    device = load_device("graphtec-ce6000")
+    assert device.tool_for("cut") == Tool(pen=1, force=18.0, speed=100.0, passes=1)
+    assert device.tool_for("cut", {"force": 20, "passes": 2}) == Tool(1, 20.0, 100.0, 2)
+    for overrides, words in [
+        ({"speed": "fast"}, "key 'layers.cut.speed': expected a speed in mm/s > 0, got 'fast'"),
+        ({"speed": 25}, "key 'layers.cut.speed': expected a multiple of 10 mm/s"),
+        ({"force": 99}, "key 'layers.cut.force': expected a value in [1, 38]"),
+        ({"passes": 0}, "key 'layers.cut.passes': expected an integer >= 1"),
+        ({"pen": True}, "key 'layers.cut.pen'"),
+        ({"depth": 1}, "unknown key 'layers.cut.depth'"),
+    ]:
+        with pytest.raises(FoldfabError) as error:
+            device.tool_for("cut", overrides, source="jobs/box.toml")
+        assert str(error.value).startswith("jobs/box.toml: ") and words in str(error.value)
+    with pytest.raises(FoldfabError, match=r"no \[layers.score\] table; known layers: valley"):
+        device.tool_for("score")
+
+
+def test_parse_sheet():
+    assert parse_sheet("A4") == (210.0, 297.0)
+    assert parse_sheet("a3 landscape") == (420.0, 297.0)
+    assert parse_sheet("Letter") == (215.9, 279.4)
+    assert parse_sheet([100, 50.5]) == (100.0, 50.5)
+    assert parse_sheet("A4 portrait") is None and parse_sheet([0, 10]) is None
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+@given(st.lists(st.tuples(st.floats(-500, 500), st.floats(-500, 500)), min_size=1, max_size=20),
+       st.sampled_from([(210.0, 297.0), (297.0, 210.0), (420.0, 297.0)]))
+def test_frame_round_trip(name, points, sheet):
+    frame = load_device(name).frame(sheet)
+    points = np.array(points)
+    assert np.allclose(frame.to_sheet(frame.to_device(points)), points, atol=1e-9)
+    complex_points = points[:, 0] + 1j * points[:, 1]
+    assert np.array_equal(frame.to_device(complex_points), frame.to_device(points))
+
+
+def test_frames_put_the_origin_where_the_profile_says():
+    hp = load_device("hp7475a").frame((297.0, 210.0))  # bottom-left, 10 mm right, 4 mm up
+    assert hp.to_device(np.array([10 + 206j])).tolist() == [[0.0, 0.0]]
+    assert hp.to_device(np.array([20 + 196j])).tolist() == [[400.0, 400.0]]
+    cutter = load_device("roland-gx24").frame((210.0, 297.0))  # bottom-right, x up, y left
+    assert cutter.to_device(np.array([200 + 287j])).tolist() == [[400.0, 400.0]]
+    assert cutter.device_rect_on_sheet(100, 50) == (160.0, 197.0, 210.0, 297.0)
+
+
+def test_wheel_contains_builtin_profiles_and_every_module(tmp_path):
+    """A non-editable build installs devices/ as foldfab/builtin_devices (pyproject package-dir)."""
+    source = tmp_path / "src"  # a copy, so that setuptools' build/ stays out of the checkout
+    shutil.copytree(ROOT, source, ignore=shutil.ignore_patterns(
+        ".*", "__pycache__", "build", "dist", "*.egg-info", "out", "tests", "benchmarks"))
+    pip = [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
+           "-w", str(tmp_path), str(source)]
+    run = subprocess.run(pip, capture_output=True, text=True, timeout=300)
+    if run.returncode != 0:
+        pytest.skip(f"cannot build a wheel here (needs setuptools>=68 from an index): {run.stderr.strip()[-200:]}")
+    (wheel,) = tmp_path.glob("foldfab-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    assert {f"foldfab/builtin_devices/{n}.toml" for n in SHIPPED} <= names
+    assert "foldfab/builtin_devices/README.md" in names
+    modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / "foldfab").rglob("*.py")}
+    assert modules <= names  # automatic discovery still finds every subpackage

@@ -1,0 +1,288 @@
+"""Interpreters (HPGL tokenizer, HPGL and G-code machines) and the time estimate.
+
+Also home of the helpers the writer tests share: plan builders and the round-trip check.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import vpype
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from foldfab.devices import DeviceProfile, load_device
+from foldfab.estimate import estimate, move_times, straight_runs
+from foldfab.interpret import HPGLTokenizer, interpret
+from foldfab.plan import Pass, Pause, PlotPlan, Tool
+from foldfab.program import Program, write_program
+
+DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
+
+
+# --- helpers shared with test_hpgl, test_gcode and test_preview -----------------------
+
+
+def usable_rect(device: DeviceProfile, sheet=None) -> tuple[float, float, float, float]:
+    """The part of the sheet the device reaches: (x0, y0, x1, y1) in sheet mm."""
+    sheet = sheet or device.sheet
+    x0, y0, x1, y1 = device.frame(sheet).device_rect_on_sheet(*device.plottable_area)
+    return max(x0, 0), max(y0, 0), min(x1, sheet[0]), min(y1, sheet[1])
+
+
+def make_document(layers: dict[int, list]) -> vpype.Document:
+    doc = vpype.Document()
+    for layer_id, lines in layers.items():
+        doc.add(vpype.LineCollection([np.asarray(line, dtype=complex) for line in lines]), layer_id)
+    return doc
+
+
+def sample_plan(device: DeviceProfile, mountain_passes: int = 2) -> PlotPlan:
+    """Valley, flip, mountain (repeated), cut, with a dot and a closed loop, inside the reach."""
+    x0, y0, x1, y1 = usable_rect(device)
+    o = complex(x0 + 5, y0 + 5)
+    doc = make_document({
+        1: [[o + 10, o + 60, o + 60 + 50j], [o + 20 + 20j]],
+        2: [[o + 30 + 30j, o + 90 + 40j, o + 30 + 30j]],
+        3: [[o, o + 100, o + 100 + 100j, o + 100j, o]],
+    })
+    steps = [
+        Pass(1, "valley", device.tool_for("valley")),
+        Pause("Flip the sheet about its left edge (mountain side up), then resume."),
+        Pass(2, "mountain", device.tool_for("mountain", {"passes": mountain_passes})),
+        Pass(3, "cut", device.tool_for("cut")),
+    ]
+    return PlotPlan(doc, steps, device.sheet)
+
+
+@st.composite
+def random_plans(draw, device: DeviceProfile) -> PlotPlan:
+    """Random lines inside the device's reach, random layers, passes and pauses."""
+    x0, y0, x1, y1 = usable_rect(device)
+    xs = st.floats(x0, x1, allow_nan=False)
+    ys = st.floats(y0, y1, allow_nan=False)
+    point = st.builds(complex, xs, ys)
+    line = st.lists(point, min_size=1, max_size=6)
+    layer_ids = draw(st.lists(st.integers(1, 5), min_size=1, max_size=3, unique=True))
+    layers = {lid: draw(st.lists(line, min_size=0, max_size=4)) for lid in layer_ids}
+    steps = []
+    for lid in layer_ids:
+        name = draw(st.sampled_from(["valley", "mountain", "cut"]))
+        steps.append(Pass(lid, name, device.tool_for(name, {"passes": draw(st.integers(1, 2))})))
+        if draw(st.booleans()):
+            steps.append(Pause(draw(st.text(min_size=0, max_size=90))))
+    return PlotPlan(make_document(layers), steps, device.sheet)
+
+
+def expected_strokes(plan: PlotPlan) -> list[tuple[int, int, str, int, Tool, np.ndarray]]:
+    """(step, layer, name, repeat, tool, points (N, 2)) for every line the plan draws, in order."""
+    out = []
+    for index, step in enumerate(plan.steps):
+        if isinstance(step, Pass):
+            lines = [np.asarray(l) for l in plan.document.layers[step.layer_id] if len(l)]
+            for repeat in range(step.tool.passes):
+                out.extend((index, step.layer_id, step.name, repeat, step.tool,
+                            np.column_stack([l.real, l.imag])) for l in lines)
+    return out
+
+
+def assert_round_trip(plan: PlotPlan, device: DeviceProfile, program: Program) -> None:
+    """The program draws every line of the plan on its pass, with its tool, and nothing else."""
+    result = interpret(program, device, plan.sheet)
+    tolerance = 0.5 / device.units_per_mm * math.sqrt(2) + 1e-9 if device.protocol == "hpgl" \
+        else 0.0005 * math.sqrt(2) + 1e-9
+    expected = expected_strokes(plan)
+    assert result.ignored == []
+    assert len(result.strokes) == len(expected)
+    for stroke, (step, layer_id, name, repeat, tool, points) in zip(result.strokes, expected):
+        section = stroke.section
+        assert (section.step, section.layer_id, section.name, section.repeat) == \
+            (step, layer_id, name, repeat)
+        assert stroke.points.shape == points.shape
+        assert np.hypot(*(stroke.points - points).T).max() <= tolerance
+        assert stroke.speed == pytest.approx(tool.speed)
+        if device.protocol == "hpgl":
+            assert (stroke.pen, stroke.force) == (tool.pen, tool.force)
+        else:
+            assert stroke.pen_down == device.layers[name].pen_down
+    plan_messages = [s.message for s in plan.steps if isinstance(s, Pause)]
+    messages = [p.message for p in result.pauses]
+    assert [m for m in messages if not m.startswith("Load tool")] == plan_messages
+    assert [p.offset for p in result.pauses] == [p.offset for p in program.pauses]
+
+
+# --- HPGL tokenizer -------------------------------------------------------------------
+
+
+def tokens(data: bytes):
+    tok = HPGLTokenizer()
+    return [(c.name, c.params, c.offset, c.text, c.error) for c in tok.feed(data) + tok.close()]
+
+
+def test_tokenizer_separators_terminators_and_offsets():
+    data = b"IN;SP1;PU 10 , -20;PD+3-4,5.5 6\nPA;PU;LBhello;world\x03VS10PD1,2"
+    assert tokens(data) == [
+        ("IN", (), 0, None, None),
+        ("SP", (1.0,), 3, None, None),
+        ("PU", (10.0, -20.0), 7, None, None),
+        ("PD", (3.0, -4.0, 5.5, 6.0), 19, None, None),
+        ("PA", (), 32, None, None),
+        ("PU", (), 35, None, None),
+        ("LB", (), 38, "hello;world", None),
+        ("VS", (10.0,), 52, None, None),
+        ("PD", (1.0, 2.0), 56, None, None),
+    ]
+
+
+def test_tokenizer_device_control_and_errors():
+    data = b"\x1b.B\x1b.@;17:PU1,2;XX1..2;P;"
+    result = tokens(data)
+    assert result[0][:3] == ("ESC.B", (), 0)
+    assert result[1][:3] == ("ESC.@", (17.0,), 3)
+    assert result[2][:2] == ("PU", (1.0, 2.0))
+    assert result[3][0] == "XX" and result[3][4] is not None
+    assert result[4][0] == "P" and result[4][4] == "not a mnemonic"
+
+
+@given(st.lists(st.integers(1, 7), min_size=1, max_size=40))
+def test_tokenizer_is_incremental(cuts):
+    """Any split of the byte stream gives the same commands as feeding it whole."""
+    data = b"IN;SP2;VS 4.5;\x1b.B PU100,200;PD 1,2,3,4 , 5 6;LBab\x03FS12,2;PU;SP0"
+    whole = tokens(data)
+    tok, got, i = HPGLTokenizer(), [], 0
+    for size in cuts * 20:
+        got += tok.feed(data[i:i + size])
+        i += size
+    got += tok.feed(data[i:]) + tok.close()
+    assert [(c.name, c.params, c.offset, c.text, c.error) for c in got] == whole
+
+
+# --- HPGL machine ---------------------------------------------------------------------
+
+
+def test_hpgl_machine_relative_pen_states_and_per_pen_settings():
+    device = load_device("hp7475a")  # origin bottom-left + (10, 4) mm, y up, 40 units/mm
+    text = "IN;SP1;VS2;VS3,2;PA400,400;PD;PR400,0,0,400;PU;PA0,0;SP2;PD400,400;PU;SP3;PD;PU;"
+    result = interpret(text, device)
+    first, second, dot = result.strokes
+    sheet_h = device.sheet[1]
+    assert first.points.tolist() == [[20, sheet_h - 14], [30, sheet_h - 14], [30, sheet_h - 24]]
+    assert (first.pen, first.speed) == (1, 20.0)
+    assert (second.pen, second.speed) == (2, 30.0)  # "VS3,2" is pen 2's speed
+    assert second.points.tolist() == [[10, sheet_h - 4], [20, sheet_h - 14]]
+    assert len(dot.points) == 1 and dot.speed == 20.0
+    assert result.strokes[0].section is None and result.strokes[0].layer == "pen 1"
+    assert [t.end for t in result.travels] == [(20.0, sheet_h - 14), (10.0, sheet_h - 4)]
+
+
+def test_hpgl_machine_reports_what_it_does_not_understand():
+    result = interpret("IN;SP1;CI50;PD1,2,3;", load_device("hp7475a"))
+    assert result.ignored[0] == "CI"
+    assert "odd coordinate count" in result.ignored[1]
+
+
+# --- G-code machine -------------------------------------------------------------------
+
+
+def test_gcode_machine_units_relative_moves_offsets_and_comments():
+    device = load_device("grbl")  # origin bottom-left, y up; pen down at Z <= -0.3
+    text = "\n".join([
+        "G21 G90", "G0 Z3", "G0 X10 Y20", "G1 Z-0.3 F600", "G91", "G1 X5 F1200", "Y5",
+        "G90 G0 Z3", "G20", "G0 X1 Y1", "G21", "G92 X0 Y0", "G1 Z-1 F60", "G1 X10 F300",
+        "G0 Z3", "(Turn the sheet)", "(over)", "M0", "M2", "",
+    ])
+    result = interpret(text, device)
+    h = device.sheet[1]
+    first, second = result.strokes
+    assert first.points.tolist() == [[10, h - 20], [15, h - 20], [15, h - 25]]
+    assert (first.speed, first.pen_down) == (20.0, -0.3)
+    assert second.points.tolist() == [[25.4, h - 25.4], [35.4, h - 25.4]]  # G92 offset
+    assert (second.speed, second.pen_down) == (5.0, -1.0)
+    assert result.pauses[0].message == "Turn the sheet over"
+    assert result.pauses[0].offset == text.index("M0") + 3
+    assert result.ignored == []
+
+
+def servo_device(folder) -> DeviceProfile:
+    """The grbl profile with a servo pen: up "M3 S50", down "M3 S30" (cut "M3 S20")."""
+    text = open(load_device("grbl").source).read()
+    text = text.replace("pen_up = 3.0", 'pen_up = "M3 S50"').replace(
+        "pen_down = -0.3", 'pen_down = "M3 S30"').replace("pen_down = -1.0", 'pen_down = "M3 S20"')
+    path = folder / "servo.toml"
+    path.write_text(text)
+    return load_device(str(path))
+
+
+def test_gcode_machine_servo_pen(tmp_path):
+    device = servo_device(tmp_path)
+    program = "M3 S50\nG0 X1 Y1\nM3 S20\nG4 P0.2\nG1 X2 F600\nM5\nX3\nM3 S30\nX4\nM3 S50\n"
+    result = interpret(program, device)
+    assert [s.pen_down for s in result.strokes] == ["M3 S20", "M3 S30"]
+    assert [len(s.points) for s in result.strokes] == [2, 2]
+    assert result.ignored == []
+
+
+def test_program_for_another_protocol_is_refused():
+    from foldfab.errors import FoldfabError
+
+    device = load_device("hp7475a")
+    program = write_program(sample_plan(device), device)
+    with pytest.raises(FoldfabError, match="hpgl program cannot run on grbl"):
+        interpret(program, load_device("grbl"))
+
+
+# --- estimate -------------------------------------------------------------------------
+
+
+def test_move_times_trapezoid_and_triangle():
+    # 100 mm at 50 mm/s, 500 mm/s^2: 0.1 s ramps, 5 mm each -> 90 mm cruise = 1.8 s + 0.2 s
+    assert move_times(np.array([100.0]), 50, 500)[0] == pytest.approx(2.1)
+    # 2 mm never reaches 50 mm/s: 2 * sqrt(2 / 500)
+    assert move_times(np.array([2.0]), 50, 500)[0] == pytest.approx(2 * math.sqrt(2 / 500))
+
+
+def test_straight_runs_merge_collinear_segments_only():
+    points = np.array([[0, 0], [1, 0], [2, 0], [2, 0], [3, 0.001], [3, 5], [3, 0]])
+    runs = straight_runs(points)
+    assert runs.tolist() == pytest.approx([3.0000001666, 4.999, 5.0], rel=1e-6)
+
+
+def serpentine_plan(device: DeviceProfile, count: int = 10, length: float = 150.0) -> PlotPlan:
+    """Long straight lines next to the park position, 2 mm apart, alternating direction."""
+    frame = device.frame(device.sheet)
+    rows = []
+    for k in range(count):
+        y = 10 + 2 * k
+        a, b = (10, y), (10 + length, y)
+        rows.append(np.array([a, b] if k % 2 == 0 else [b, a]) * device.units_per_mm)
+    lines = [frame.to_sheet(r) for r in rows]
+    doc = make_document({1: [line[:, 0] + 1j * line[:, 1] for line in lines]})
+    return PlotPlan(doc, [Pass(1, "cut", device.tool_for("cut"))], device.sheet)
+
+
+@pytest.mark.parametrize("name", DEVICES)
+def test_estimate_close_to_lower_bound_on_long_straight_lines(name):
+    device = load_device(name)
+    plan = serpentine_plan(device)
+    result = estimate(interpret(write_program(plan, device), device, plan.sheet), device)
+    assert result.lower_bound <= result.total <= 1.1 * result.lower_bound
+    speed = device.layers["cut"].speed
+    assert result.lower_bound == pytest.approx(1500 / speed + 20 * device.motion.pen_lift_time)
+
+
+@pytest.mark.parametrize("name", DEVICES)
+def test_estimate_never_below_lower_bound(name):
+    device = load_device(name)
+
+    @settings(max_examples=25, deadline=None)
+    @given(random_plans(device))
+    def check(plan):
+        result = estimate(interpret(write_program(plan, device), device, plan.sheet), device)
+        assert result.total >= result.lower_bound - 1e-9
+        layers = result.layers.values()
+        assert sum(s.time for s in layers) == pytest.approx(result.total)
+        assert sum(s.pen_lifts for s in layers) == len(expected_strokes(plan))
+
+    check()
