@@ -147,7 +147,7 @@ def build_plan(design: Design, device: DeviceProfile, spec: FabricationSpec | No
         doc.add(collection, layer_id, with_metadata=True)
         steps.append(Pass(layer_id, name, device.tool_for(name, spec.layers.get(name), source)))
     plan = PlotPlan(doc, steps, sheet)
-    park = _park(device, sheet)
+    park = park_position(device, sheet)
     perforated = frozenset(("valley", "mountain")) if spec.strategy == "perforate" else frozenset()
     plan = optimize_plan(plan, spec.optimize, 1.0 / device.units_per_mm, park, keep_vertices=perforated)
     for step in plan.steps:
@@ -186,14 +186,14 @@ def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | Non
     if spec is None:
         spec = parse_fabrication(design.job.fabrication, str(design.job.path))
     plan = build_plan(design, device, spec)
-    park = _park(device, plan.sheet)
+    park = park_position(device, plan.sheet)
     before = travel(build_plan(design, device, replace(spec, optimize="none")), park) \
         if spec.optimize != "none" else travel(plan, park)
     placement, _ = place(design, device, spec)
     return Fabrication(spec, placement, plan, write_program(plan, device), before, travel(plan, park))
 
 
-def _park(device: DeviceProfile, sheet: tuple[float, float]) -> complex:
+def park_position(device: DeviceProfile, sheet: tuple[float, float]) -> complex:
     """The device's park position on the sheet (where the pen starts and ends)."""
     frame = device.frame(sheet)
     return complex(*frame.to_sheet(np.array([device.motion.park]) * device.units_per_mm)[0])

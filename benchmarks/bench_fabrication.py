@@ -1,0 +1,98 @@
+"""Fabrication quality and speed: pen-up travel, time estimate vs lower bound, export time.
+
+Run by hand:  python benchmarks/bench_fabrication.py
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from foldfab.design import load_design
+from foldfab.devices import load_device
+from foldfab.estimate import estimate
+from foldfab.fabrication import build_plan, fabricate, parse_fabrication, park_position
+from foldfab.interpret import interpret
+from foldfab.optimize import travel
+from foldfab.plan import Pass, PlotPlan
+
+ROOT = Path(__file__).resolve().parent.parent
+JOBS = ["hexagon-fig8a", "diamond-fig9", "vase-svg", "star", "open-wave-fig11f", "helix-fig12"]
+
+
+def vpype_plain(plan: PlotPlan) -> PlotPlan:
+    """The same layers through vpype's plain ``linemerge linesort`` pipeline."""
+    import vpype_cli
+
+    return PlotPlan(vpype_cli.execute("linemerge linesort", plan.document), plan.steps, plan.sheet)
+
+
+def travel_table(device_name: str = "graphtec-ce6000") -> None:
+    device = load_device(device_name)
+    print(f"pen-up travel on {device_name}, mm (A3, scale 0.5, force strategy; all layers, park and between layers)")
+    print(f"{'job':<18}{'unsorted':>10}{'vpype linemerge linesort':>26}{'foldfab greedy':>16}{'foldfab two-opt':>17}")
+    for name in JOBS:
+        design = load_design(ROOT / "jobs" / f"{name}.toml")
+        spec = parse_fabrication({"sheet": "A3", "margin": 5, "scale": 0.5}, name)
+        park = park_position(device, spec.sheet)
+        raw = build_plan(design, device, dataclasses.replace(spec, optimize="none"))
+        figures = [travel(raw, park)["total"], travel(vpype_plain(raw), park)["total"],
+                   travel(build_plan(design, device, spec), park)["total"],
+                   travel(build_plan(design, device, dataclasses.replace(spec, optimize="two-opt")), park)["total"]]
+        print(f"{name:<18}" + "".join(f"{v:>{w}.0f}" for v, w in zip(figures, (10, 26, 16, 17))))
+
+
+def estimate_table(device_name: str = "graphtec-ce6000") -> None:
+    device = load_device(device_name)
+    print(f"\nestimated plot time vs lower bound on {device_name} (drawn length at draw speed + unavoidable pen lifts)")
+    for name in JOBS:
+        design = load_design(ROOT / "jobs" / f"{name}.toml")
+        fab = fabricate(design, device, parse_fabrication({"sheet": "A3", "margin": 5, "scale": 0.5}, name))
+        est = estimate(interpret(fab.program, device, fab.plan.sheet), device)
+        print(f"{name:<18} estimate {est.total:7.1f} s   lower bound {est.lower_bound:7.1f} s   "
+              f"+{100 * (est.total / est.lower_bound - 1):5.1f}%")
+
+
+def export_times() -> None:
+    cli = [sys.executable, "-m", "foldfab", "export"]
+    print("\nfoldfab export, end to end (best of 3)")
+    with tempfile.TemporaryDirectory() as tmp:
+        big = Path(tmp) / "big.toml"
+        corners, radius = 1000, 2000.0
+        w = 0.8 * radius * math.sin(math.pi / corners) * math.tan(math.pi / corners)
+        v = np.linspace(0, 60, 101)
+        points = ", ".join(f"[{w * math.sin(x / 60 * 6 * math.pi):.9f}, {x:.9f}]" for x in v)
+        big.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = {corners}\n"
+                       f"radius = {radius}\n[fabrication]\nsheet = [13000, 100]\nmargin = 5\n")
+        cases = [("paper scale: jobs/vase-svg.toml (320 faces)", [str(ROOT / "jobs" / "vase-svg.toml"), "--device", "graphtec-ce6000"]),
+                 ("100,000 faces", [str(big), "--device", str(Path(tmp) / "long.toml")])]
+        profile = (ROOT / "devices" / "graphtec-ce6000.toml").read_text()
+        (Path(tmp) / "long.toml").write_text(profile.replace('name = "graphtec-ce6000"', 'name = "long-roll"')
+                                             .replace("plottable_area = [1000, 375]", "plottable_area = [375, 13000]"))
+        vase = ROOT / "jobs" / "vase-svg.toml"
+        for label, args in cases:
+            extra = []
+            if args[0] == str(vase):
+                job = Path(tmp) / "vase.toml"
+                job.write_text(vase.read_text().replace('"vase-profile.svg"', f'"{ROOT / "jobs" / "vase-profile.svg"}"')
+                               + "\n[fabrication]\nsheet = \"A3\"\nmargin = 5\nscale = 0.7\n")
+                args = [str(job)] + args[1:]
+            best = math.inf
+            for _ in range(3):
+                start = time.perf_counter()
+                subprocess.run(cli + args + ["-o", str(Path(tmp) / "out.plt")] + extra, check=True, capture_output=True)
+                best = min(best, time.perf_counter() - start)
+            print(f"{label:<45} {best:6.2f} s")
+
+
+if __name__ == "__main__":
+    travel_table()
+    estimate_table()
+    export_times()
