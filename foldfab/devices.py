@@ -438,7 +438,7 @@ _PEN_POSITION = 'a Z height in mm (number) or a servo command like "M3 S30" or "
 
 def _check_tool(device, reader: _Reader, pen, force, speed, passes) -> None:
     """Check tool values against what the device's language and limits accept."""
-    language = DIALECTS[device.protocol][device.dialect]
+    language = device.language
     if force is not None and not language.force:
         raise reader.fail(
             "force", "no force (this device's language has no force command)", force,
@@ -449,9 +449,10 @@ def _check_tool(device, reader: _Reader, pen, force, speed, passes) -> None:
         ("speed", speed, language.speed_step, "mm/s"),
     ):
         if value is not None and step is not None and abs(value / step - round(value / step)) > 1e-9:
+            lower, upper = math.floor(value / step) * step, math.ceil(value / step) * step
             raise reader.fail(
                 key, f"a multiple of {step:g} {unit} ({device.dialect} dialect)", value,
-                f"use {round(value / step) * step:g} or {device.dialect} cannot express it",
+                f"use {lower:g} or {upper:g}: the device cannot be told {value:g} exactly",
             )
     for key, value in (("pen", pen), ("force", force), ("speed", speed)):
         bounds = getattr(device.limits, key)

@@ -33,7 +33,7 @@ MAX_LINE = 79  # characters before "\n": GRBL 1.1 holds 80 including the termina
 
 def write_gcode(plan: PlotPlan, device: DeviceProfile) -> Program:
     """The GRBL 1.1 program drawing ``plan`` on ``device``."""
-    frame, items = sweeps(plan, device)
+    items = sweeps(plan, device)
     out = _GcodeWriter(device)
     sheet = f"{fmt_number(plan.sheet[0], 1)} x {fmt_number(plan.sheet[1], 1)} mm"
     out.comment(f"foldfab program for {device.name}, sheet {sheet}")

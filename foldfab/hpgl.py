@@ -29,7 +29,7 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
     """The HPGL program drawing ``plan`` on ``device``."""
     import numpy as np
 
-    _, items = sweeps(plan, device)
+    items = sweeps(plan, device)
     out = ProgramBuilder("hpgl", device)
     park_x, park_y = (round(v * device.units_per_mm) for v in device.motion.park)
     park = f"PU{park_x},{park_y};SP0;"

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import DeviceProfile, Frame
-    from foldfab.program import Program, Section
+    from foldfab.program import PauseMark, Program, Section
 
 ESC, ETX = 0x1B, 0x03
 ESC_WITH_PARAMETERS = b"@HIMNT"  # ESC . x <parameters> :   (the others take none)
@@ -309,7 +309,7 @@ class _HPGLMachine(_Machine):
             self.pause(mark)
         return self.finish()
 
-    def pause(self, mark) -> None:
+    def pause(self, mark: PauseMark) -> None:
         self.lift()
         self.result.pauses.append(PauseEvent(mark.message, self.sheet_point(self.position),
                                              mark.offset, len(self.result.strokes)))
@@ -368,8 +368,8 @@ class _GcodeMachine(_Machine):
         gcode = device.gcode
         downs = [layer.pen_down for layer in device.layers.values()]
         self.servo = isinstance(gcode.pen_up, str)
-        self.down_commands = {d for d in downs if isinstance(d, str)}
-        self.lowest_up = None if self.servo else max(downs) + 1e-3  # z <= this: pen down
+        self.down_commands = {_servo_key(d) for d in downs if isinstance(d, str)}
+        self.down_limit = None if self.servo else max(downs) + 1e-3  # z <= this: pen down
         self.messages = {m.offset: m.message for m in known.pauses} if known else {}
         self.motion, self.feed, self.spindle = "G0", None, 0.0
         self.z, self.absolute, self.scale = gcode.pen_up if not self.servo else 0.0, True, 1.0
@@ -412,11 +412,11 @@ class _GcodeMachine(_Machine):
         if self.g92_pending:
             self.set_position(values)
         elif "X" in values or "Y" in values:
-            self.xy_move(values, offset)
+            self.xy_move(values)
         if "Z" in values and not self.g92_pending:
             self.z = values["Z"] * self.scale + (0 if self.absolute else self.z)
             if not self.servo:
-                self.pen_state(self.z <= self.lowest_up, self.z, offset)
+                self.pen_state(self.z <= self.down_limit, self.z, offset)
         self.g92_pending = False
         for m in values.get("M", []):
             self.m_word(m, offset, end)
@@ -445,7 +445,7 @@ class _GcodeMachine(_Machine):
             gy = self.position[1] - y * self.scale
         self.g92 = (gx, gy)
 
-    def xy_move(self, values: dict, offset: int) -> None:
+    def xy_move(self, values: dict) -> None:
         x, y = self.position
         if self.absolute:
             x = values["X"] * self.scale + self.g92[0] if "X" in values else x
@@ -468,7 +468,7 @@ class _GcodeMachine(_Machine):
             self.pen_state(False, None, offset)
         elif value in (3, 5) and self.servo:
             command = "M5" if value == 5 else f"M3 S{self.spindle:g}"
-            self.pen_state(command in self.down_commands, command, offset)
+            self.pen_state(_servo_key(command) in self.down_commands, command, offset)
         elif value not in (3, 5):
             self.result.ignored.append(f"M{value:g}")
 
@@ -480,3 +480,8 @@ class _GcodeMachine(_Machine):
             self.lift()
         self.is_down = down
 
+
+def _servo_key(command: str) -> tuple[str, float | None]:
+    """("M3", S value) or ("M5", None): servo commands compared by value, not spelling."""
+    words = dict(_WORD.findall(command.upper()))
+    return ("M5", None) if float(words["M"]) == 5 else ("M3", float(words.get("S", "nan")))

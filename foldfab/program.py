@@ -132,7 +132,7 @@ class ProgramBuilder:
                        tuple(self.pauses))
 
 
-def sweeps(plan: PlotPlan, device: DeviceProfile) -> tuple[Frame, list[Union[Sweep, Stop]]]:
+def sweeps(plan: PlotPlan, device: DeviceProfile) -> list[Union[Sweep, Stop]]:
     """The plan as device-ready sweeps and stops, in plan order."""
     import numpy as np
 
@@ -171,7 +171,7 @@ def sweeps(plan: PlotPlan, device: DeviceProfile) -> tuple[Frame, list[Union[Swe
         pen = step.tool.pen
         result.extend(Sweep(index, step.layer_id, step.name, repeat, step.tool,
                             converted[step.layer_id]) for repeat in range(step.tool.passes))
-    return frame, result
+    return result
 
 
 def _to_device(frame: Frame, lines: list[np.ndarray]) -> list[np.ndarray]:

@@ -249,27 +249,28 @@ def test_straight_runs_merge_collinear_segments_only():
     assert runs.tolist() == pytest.approx([3.0000001666, 4.999, 5.0], rel=1e-6)
 
 
-def serpentine_plan(device: DeviceProfile, count: int = 10, length: float = 150.0) -> PlotPlan:
+def serpentine_plan(device: DeviceProfile, count: int = 10) -> tuple[PlotPlan, float]:
     """Long straight lines next to the park position, 2 mm apart, alternating direction."""
     frame = device.frame(device.sheet)
+    along = device.sheet[0] if frame.matrix[0][0] else device.sheet[1]  # sheet size along x
+    length = min(device.plottable_area[0], along) - 20
     rows = []
     for k in range(count):
-        y = 10 + 2 * k
-        a, b = (10, y), (10 + length, y)
+        a, b = (10, 10 + 2 * k), (10 + length, 10 + 2 * k)
         rows.append(np.array([a, b] if k % 2 == 0 else [b, a]) * device.units_per_mm)
     lines = [frame.to_sheet(r) for r in rows]
     doc = make_document({1: [line[:, 0] + 1j * line[:, 1] for line in lines]})
-    return PlotPlan(doc, [Pass(1, "cut", device.tool_for("cut"))], device.sheet)
+    return PlotPlan(doc, [Pass(1, "cut", device.tool_for("cut"))], device.sheet), count * length
 
 
 @pytest.mark.parametrize("name", DEVICES)
 def test_estimate_close_to_lower_bound_on_long_straight_lines(name):
     device = load_device(name)
-    plan = serpentine_plan(device)
+    plan, drawn = serpentine_plan(device)
     result = estimate(interpret(write_program(plan, device), device, plan.sheet), device)
     assert result.lower_bound <= result.total <= 1.1 * result.lower_bound
     speed = device.layers["cut"].speed
-    assert result.lower_bound == pytest.approx(1500 / speed + 20 * device.motion.pen_lift_time)
+    assert result.lower_bound == pytest.approx(drawn / speed + 20 * device.motion.pen_lift_time)
 
 
 @pytest.mark.parametrize("name", DEVICES)
