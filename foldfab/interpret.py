@@ -159,6 +159,9 @@ class Stroke:
     """Byte offset of the command that lowered the pen."""
     section: Section | None = None
     """Plan step, layer and repetition, when interpreting a Program."""
+    end: int = -1
+    """Byte offset of the command that lifted the pen (the text length if none did): once
+    the device has executed the bytes before it, the stroke is drawn (resume, progress)."""
 
     @property
     def length(self) -> float:
@@ -246,6 +249,7 @@ class _Machine:
         self.position = (0.0, 0.0)
         self.stroke: list[tuple[float, float]] | None = None
         self.stroke_meta: dict = {}
+        self.at = 0  # byte offset of the command being executed
         self.raw_travels: list[tuple[tuple[float, float], tuple[float, float], int]] = []
 
     def lower(self, offset: int, **meta) -> None:
@@ -258,7 +262,7 @@ class _Machine:
             points = self.frame.to_sheet(self.stroke)
             meta = self.stroke_meta
             section = self.known.section_at(meta["offset"]) if self.known else None
-            self.result.strokes.append(Stroke(points=points, section=section, **meta))
+            self.result.strokes.append(Stroke(points=points, section=section, end=self.at, **meta))
             self.stroke = None
 
     def move_to(self, target: tuple[float, float]) -> None:
@@ -302,9 +306,11 @@ class _HPGLMachine(_Machine):
         marks = list(self.known.pauses) if self.known else []
         commands = tokenizer.feed(text.encode("latin-1")) + tokenizer.close()
         for command in commands:
+            self.at = command.offset
             while marks and marks[0].offset <= command.offset:
                 self.pause(marks.pop(0))
             self.execute(command)
+        self.at = len(text)
         for mark in marks:
             self.pause(mark)
         return self.finish()
@@ -383,8 +389,10 @@ class _GcodeMachine(_Machine):
         offset = 0
         for raw in text.split("\n"):
             end = offset + len(raw) + 1
+            self.at = offset
             self.execute(raw, offset, min(end, len(text)))
             offset = end
+        self.at = len(text)
         return self.finish()
 
     def execute(self, raw: str, offset: int, end: int) -> None:
