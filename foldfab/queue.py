@@ -1,0 +1,729 @@
+"""The job queue: persistent, crash-safe, shared by several workers and plotters.
+
+A queued job is a **snapshot**: the job file's text, the device profile's text and
+the plotter program built from them when the job was added (its text, sections,
+pauses and SHA-256).  Editing the job file, its SVG files or the device profile
+later changes nothing queued; the program is what runs.
+
+States and transitions (every change is one ``BEGIN IMMEDIATE`` transaction)::
+
+    queued ──claim──> running ──pause──> waiting ──continue──> running
+    running ──> done | failed | cancelled | interrupted
+    waiting ──> cancelled | interrupted
+    running/waiting, lease expired or worker process gone ──> interrupted
+                                       (cancelled if a cancel was requested)
+    interrupted ──claim──> running      (resumes from the last acknowledged byte)
+    queued, interrupted ──cancel──> cancelled
+    running, waiting ──cancel──> (cancel requested; the worker stops the plotter) cancelled
+    failed, cancelled, interrupted ──retry──> queued
+
+A worker holds a **lease** on its job and renews it (the heartbeat); a job whose
+lease expired, or whose worker process on this machine is gone, becomes
+interrupted at the next write to the queue.  Claims are atomic: a job runs on one
+worker, and a plotter (its port) runs one job at a time.  A plotter with an
+interrupted job (a half-drawn sheet on it) runs nothing else until that job is
+resumed, cancelled or removed.
+
+Storage is behind :class:`QueueStore`; :class:`SqliteQueueStore` keeps it in an
+SQLite file in WAL mode (local disks only: WAL needs shared memory, so not NFS).
+This module is imported by ``foldfab queue list``: standard library only.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import secrets
+import socket
+import sqlite3
+import threading
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Iterator, Protocol, Sequence
+
+from foldfab.errors import FoldfabError
+
+if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
+    from foldfab.program import Program
+
+STATES = ("queued", "running", "waiting", "done", "failed", "cancelled", "interrupted")
+ACTIVE = ("running", "waiting")
+RUNNABLE = ("queued", "interrupted")
+FINISHED = ("done", "failed", "cancelled")
+DEFAULT_LEASE = 30.0
+DEFAULT_WAIT = 10.0
+
+
+def default_queue_path() -> Path:
+    """``$FOLDFAB_QUEUE``, else ``$XDG_DATA_HOME/foldfab/queue.sqlite3`` (default ``~/.local/share``)."""
+    if os.environ.get("FOLDFAB_QUEUE"):
+        return Path(os.environ["FOLDFAB_QUEUE"])
+    base = os.environ.get("XDG_DATA_HOME") or os.path.join(os.path.expanduser("~"), ".local", "share")
+    return Path(base) / "foldfab" / "queue.sqlite3"
+
+
+# --- records -----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What a queued job runs: the program and the texts it was built from."""
+
+    name: str
+    job_path: str
+    job_text: str
+    device: str
+    device_text: str
+    program: Program
+
+    @property
+    def sha256(self) -> str:
+        """SHA-256 of the program text."""
+        return hashlib.sha256(self.program.encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class NewJob:
+    """A snapshot to add ``copies`` times on ``port`` with ``priority``."""
+
+    snapshot: Snapshot
+    port: str
+    priority: int = 0
+    copies: int = 1
+
+
+@dataclass(frozen=True)
+class JobRecord:
+    """One job (one sheet) as the queue sees it."""
+
+    id: int
+    name: str
+    job_path: str
+    device: str
+    port: str
+    priority: int
+    copy: int
+    copies: int
+    state: str
+    created: float
+    updated: float
+    worker: str | None
+    lease_expires: float | None
+    acked_bytes: int
+    program_bytes: int
+    progress: str
+    pauses_done: int
+    cancel_requested: bool
+    attempts: int
+    reason: str | None
+
+    @property
+    def percent(self) -> float:
+        """Acknowledged share of the program, 0..100."""
+        return 100.0 * self.acked_bytes / self.program_bytes if self.program_bytes else 100.0
+
+    def as_dict(self) -> dict:
+        """Plain data for JSON output."""
+        return {field: getattr(self, field) for field in self.__dataclass_fields__} | {
+            "percent": round(self.percent, 1)}
+
+
+@dataclass(frozen=True)
+class Event:
+    """One line of a job's log."""
+
+    time: float
+    kind: str
+    message: str
+
+
+@dataclass(frozen=True)
+class WorkerId:
+    """Who holds a lease: ``host/pid/token`` (the token tells threads of one process apart)."""
+
+    host: str
+    pid: int
+    token: str
+
+    @classmethod
+    def current(cls) -> WorkerId:
+        """A new identity for a worker in this process."""
+        return cls(socket.gethostname(), os.getpid(), secrets.token_hex(4))
+
+    def __str__(self) -> str:
+        return f"{self.host}/{self.pid}/{self.token}"
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A job a worker now holds: the record (state ``running``) and its snapshot."""
+
+    job: JobRecord
+    snapshot: Snapshot
+
+
+@dataclass(frozen=True)
+class Control:
+    """What a heartbeat tells the worker: keep going, wait, stop or give up."""
+
+    state: str
+    cancel_requested: bool
+    lost: bool
+    """The job is no longer this worker's (its lease expired, or it was removed)."""
+
+
+# --- program (de)serialization -------------------------------------------------------------
+
+
+def _program_meta(program: Program) -> str:
+    return json.dumps({
+        "protocol": program.protocol, "device": program.device,
+        "sections": [[s.offset, s.step, s.layer_id, s.name, s.repeat,
+                      [s.tool.pen, s.tool.force, s.tool.speed, s.tool.passes]] for s in program.sections],
+        "pauses": [[p.offset, p.step, p.message] for p in program.pauses]})
+
+
+def _program_from(text: str, meta: str) -> Program:
+    from foldfab.plan import Tool
+    from foldfab.program import PauseMark, Program, Section
+
+    data = json.loads(meta)
+    return Program(text, data["protocol"], data["device"],
+                   tuple(Section(o, st, lid, n, r, Tool(*tool)) for o, st, lid, n, r, tool in data["sections"]),
+                   tuple(PauseMark(o, st, m) for o, st, m in data["pauses"]))
+
+
+def make_snapshot(job_path: Path, job_text: str, name: str, device: DeviceProfile, program: Program) -> Snapshot:
+    """The snapshot of a built job: the texts are read now, so later edits change nothing."""
+    try:
+        device_text = Path(device.source).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise FoldfabError(f"{device.source}: cannot read the device profile to queue it ({exc.strerror})") from None
+    return Snapshot(name, str(Path(job_path).resolve()), job_text, device.name, device_text, program)
+
+
+def load_snapshot_device(snapshot: Snapshot) -> DeviceProfile:
+    """The device profile as it was when the job was queued."""
+    import tempfile
+
+    from foldfab.devices import load_device
+
+    with tempfile.TemporaryDirectory(prefix="foldfab-queue-") as folder:
+        path = Path(folder) / f"{snapshot.device}.toml"
+        path.write_text(snapshot.device_text, encoding="utf-8")
+        return load_device(path)
+
+
+# --- the interface -------------------------------------------------------------------------
+
+
+class QueueStore(Protocol):
+    """Where the queue lives.  Every method is one atomic change (or one consistent read)."""
+
+    location: str
+
+    def add(self, jobs: Sequence[NewJob]) -> list[int]:
+        """Queue every copy of every job, all or nothing; the new ids in order."""
+
+    def jobs(self, state: str | None = None) -> list[JobRecord]:
+        """Jobs in claim order (a dead worker's job already shows as interrupted)."""
+
+    def job(self, job_id: int) -> JobRecord:
+        """One job; FoldfabError if there is none."""
+
+    def events(self, job_id: int) -> list[Event]:
+        """The job's log, oldest first."""
+
+    def snapshot(self, job_id: int) -> Snapshot:
+        """The job's snapshot; FoldfabError if its program no longer matches its hash."""
+
+    def cancel(self, job_id: int) -> JobRecord:
+        """Cancel a job that has not run, or ask its worker to stop the plotter."""
+
+    def retry(self, job_id: int, restart: bool = False) -> JobRecord:
+        """Queue a failed, cancelled or interrupted job again (``restart``: from byte 0, a new sheet)."""
+
+    def continue_job(self, job_id: int, source: str) -> JobRecord:
+        """The operator acted at the pause (``source`` says where): ``waiting`` -> ``running``."""
+
+    def remove(self, job_id: int) -> None:
+        """Delete a job that no worker holds, with its log."""
+
+    def clear(self, states: Sequence[str]) -> int:
+        """Delete every job in ``states``; how many."""
+
+    def claim(self, worker: WorkerId, lease: float, device: str | None = None,
+              port: str | None = None) -> Claim | None:
+        """Atomically take the next runnable job (for ``device``/``port`` if given), or None."""
+
+    def runnable(self, device: str | None = None, port: str | None = None) -> list[JobRecord]:
+        """Jobs a claim would take, in claim order (without claiming them)."""
+
+    def heartbeat(self, job_id: int, worker: WorkerId, lease: float, acked_bytes: int | None = None,
+                  progress: str | None = None) -> Control:
+        """Renew the lease, persist progress, read cancel/continue requests."""
+
+    def log(self, job_id: int, kind: str, message: str) -> None:
+        """Add an event to the job's log."""
+
+    def wait_at_pause(self, job_id: int, worker: WorkerId, message: str) -> Control:
+        """``running`` -> ``waiting`` at a pause; log the operator's instruction."""
+
+    def finish(self, job_id: int, worker: WorkerId, state: str, message: str,
+               acked_bytes: int | None = None) -> bool:
+        """End the worker's hold: ``done``, ``failed``, ``cancelled`` or ``interrupted``; False if it was lost."""
+
+    def close(self) -> None:
+        """Release the storage."""
+
+
+# --- SQLite --------------------------------------------------------------------------------
+
+MIGRATIONS: tuple[str, ...] = (
+    # version 1: snapshots (program text last, so listing never reads it), jobs, events
+    """
+    CREATE TABLE snapshots (
+        id INTEGER PRIMARY KEY AUTOINCREMENT,
+        name TEXT NOT NULL,
+        job_path TEXT NOT NULL,
+        device TEXT NOT NULL,
+        program_bytes INTEGER NOT NULL,
+        program_sha256 TEXT NOT NULL,
+        program_meta TEXT NOT NULL,
+        job_text TEXT NOT NULL,
+        device_text TEXT NOT NULL,
+        program TEXT NOT NULL
+    );
+    CREATE TABLE jobs (
+        id INTEGER PRIMARY KEY AUTOINCREMENT,
+        snapshot_id INTEGER NOT NULL REFERENCES snapshots(id),
+        port TEXT NOT NULL,
+        priority INTEGER NOT NULL DEFAULT 0,
+        copy INTEGER NOT NULL DEFAULT 1,
+        copies INTEGER NOT NULL DEFAULT 1,
+        state TEXT NOT NULL DEFAULT 'queued' CHECK (state IN
+            ('queued', 'running', 'waiting', 'done', 'failed', 'cancelled', 'interrupted')),
+        created REAL NOT NULL,
+        updated REAL NOT NULL,
+        worker TEXT,
+        lease_expires REAL,
+        acked_bytes INTEGER NOT NULL DEFAULT 0,
+        pauses_done INTEGER NOT NULL DEFAULT 0,
+        cancel_requested INTEGER NOT NULL DEFAULT 0,
+        attempts INTEGER NOT NULL DEFAULT 0,
+        reason TEXT
+    );
+    CREATE TABLE events (
+        id INTEGER PRIMARY KEY AUTOINCREMENT,
+        job_id INTEGER NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
+        time REAL NOT NULL,
+        kind TEXT NOT NULL,
+        message TEXT NOT NULL
+    );
+    CREATE INDEX events_by_job ON events(job_id, id);
+    """,
+    # version 2: progress text for list/show; worker host and pid, so a worker that died on
+    # this machine is noticed at once instead of when its lease expires; claim indexes
+    """
+    ALTER TABLE jobs ADD COLUMN progress TEXT NOT NULL DEFAULT '';
+    ALTER TABLE jobs ADD COLUMN worker_host TEXT;
+    ALTER TABLE jobs ADD COLUMN worker_pid INTEGER;
+    CREATE INDEX jobs_by_state ON jobs(state, priority DESC, id);
+    CREATE INDEX jobs_by_port ON jobs(port, state);
+    CREATE INDEX jobs_by_snapshot ON jobs(snapshot_id);
+    """,
+)
+SCHEMA_VERSION = len(MIGRATIONS)
+
+_JOB_COLUMNS = """j.id, s.name, s.job_path, s.device, j.port, j.priority, j.copy, j.copies,
+    {state}, j.created, j.updated, j.worker, j.lease_expires, j.acked_bytes, s.program_bytes,
+    j.progress, j.pauses_done, j.cancel_requested, j.attempts, {reason}"""
+# A running or waiting job whose worker is dead (lease expired, or its process on this machine
+# gone) is reported as what the next write to the queue makes it.
+_DEAD = ("(j.lease_expires < :now OR (j.worker_host = :host AND j.worker_pid IS NOT NULL "
+         "AND NOT foldfab_pid_alive(j.worker_pid)))")
+_EFFECTIVE_STATE = (f"CASE WHEN j.state IN ('running', 'waiting') AND {_DEAD} THEN "
+                    "CASE WHEN j.cancel_requested THEN 'cancelled' ELSE 'interrupted' END ELSE j.state END")
+_EFFECTIVE_REASON = (f"CASE WHEN j.state IN ('running', 'waiting') AND {_DEAD} THEN "
+                     "'worker ' || j.worker || ' is gone or stopped renewing its lease' ELSE j.reason END")
+_SELECT_JOBS = (f"SELECT {_JOB_COLUMNS.format(state=_EFFECTIVE_STATE, reason=_EFFECTIVE_REASON)} "
+                "FROM jobs j JOIN snapshots s ON s.id = j.snapshot_id")
+# The next job for a worker: resumes first (a half-drawn sheet is on that plotter), then
+# priority, then arrival; never a plotter that is busy or holds an interrupted job.
+_CLAIM_ORDER = "ORDER BY j.state = 'interrupted' DESC, j.priority DESC, j.id"
+_RUNNABLE = f"""{_SELECT_JOBS}
+    WHERE j.state IN ('queued', 'interrupted')
+      AND (:device IS NULL OR s.device = :device) AND (:port IS NULL OR j.port = :port)
+      AND NOT EXISTS (SELECT 1 FROM jobs o WHERE o.port = j.port AND o.id <> j.id
+                      AND (o.state IN ('running', 'waiting')
+                           OR (o.state = 'interrupted' AND j.state <> 'interrupted')))
+    {_CLAIM_ORDER}"""
+
+
+def _pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists on this machine."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # it exists, under another user
+        return True
+    return True
+
+
+class SqliteQueueStore:
+    """The queue in one SQLite file in WAL mode, shared by threads, processes and hosts' workers
+    (on a local disk).  ``wait``: seconds to wait for another writer before giving up."""
+
+    def __init__(self, path: str | os.PathLike, wait: float = DEFAULT_WAIT):
+        self.path = Path(path)
+        self.location = str(self.path)
+        self.wait = wait
+        self._lock = threading.Lock()
+        self._host = socket.gethostname()
+        self._db: sqlite3.Connection | None = None
+
+    # -- connection, errors, migrations
+
+    def _connect(self) -> sqlite3.Connection:
+        if self._db is None:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise FoldfabError(f"queue file {self.path}: cannot create its folder ({exc.strerror}); "
+                                   "choose another with --queue or FOLDFAB_QUEUE") from None
+            db = sqlite3.connect(self.path, timeout=self.wait, isolation_level=None, check_same_thread=False)
+            try:
+                db.create_function("foldfab_pid_alive", 1, _pid_alive)
+                db.execute(f"PRAGMA busy_timeout = {int(self.wait * 1000)}")
+                db.execute("PRAGMA foreign_keys = ON")
+                self._migrate(db)
+            except BaseException:
+                db.close()
+                raise
+            self._db = db
+        return self._db
+
+    def _migrate(self, db: sqlite3.Connection) -> None:
+        version = db.execute("PRAGMA user_version").fetchone()[0]
+        if version > SCHEMA_VERSION:
+            raise FoldfabError(f"queue file {self.path} has schema version {version}, but this foldfab knows "
+                               f"only up to {SCHEMA_VERSION}: upgrade foldfab, or choose another queue with --queue")
+        if version == SCHEMA_VERSION:
+            return
+        if version == 0 and db.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]:
+            raise FoldfabError(f"{self.path} is an SQLite file but not a foldfab queue; "
+                               "choose another file with --queue or FOLDFAB_QUEUE")
+        db.execute("PRAGMA journal_mode = WAL")
+        db.execute("BEGIN IMMEDIATE")
+        try:
+            version = db.execute("PRAGMA user_version").fetchone()[0]  # another process may have migrated
+            for step in range(version, SCHEMA_VERSION):
+                for statement in MIGRATIONS[step].split(";"):
+                    if statement.strip():
+                        db.execute(statement)
+            db.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+            db.execute("COMMIT")
+        except BaseException:
+            db.execute("ROLLBACK")
+            raise
+
+    @contextmanager
+    def _errors(self) -> Iterator[None]:
+        """Turn SQLite's errors into one line that names the file and what to do."""
+        try:
+            yield
+        except sqlite3.DatabaseError as exc:
+            name = getattr(exc, "sqlite_errorname", "")
+            where = f"queue file {self.path}"
+            if name.startswith("SQLITE_BUSY") or name.startswith("SQLITE_LOCKED"):
+                message = (f"{where} is busy: another foldfab kept it locked for more than {self.wait:g} s; "
+                           "nothing was changed; try again (or wait longer with --wait)")
+            elif name == "SQLITE_READONLY_DIRECTORY":
+                message = (f"{where}: its folder is not writable, and SQLite needs to create "
+                           f"{self.path.name}-wal and {self.path.name}-shm beside it; nothing was changed; "
+                           "make the folder writable, or choose another queue with --queue")
+            elif name.startswith(("SQLITE_READONLY", "SQLITE_CANTOPEN", "SQLITE_PERM")):
+                message = (f"{where} is read-only for you ({exc}); nothing was changed; ask its owner for "
+                           "write access, or choose another queue with --queue")
+            elif name.startswith(("SQLITE_NOTADB", "SQLITE_CORRUPT")):
+                message = (f"{where} is damaged ({exc}); nothing was changed; move it aside "
+                           f"(mv {self.path} {self.path}.damaged) to start a new queue, or recover its jobs "
+                           f"with: sqlite3 {self.path} .recover")
+            else:
+                message = f"{where}: {exc}; nothing was changed"
+            raise FoldfabError(message) from None
+
+    @contextmanager
+    def _read(self) -> Iterator[sqlite3.Connection]:
+        """One consistent read (a file that does not exist yet is not created)."""
+        if not self.path.exists():
+            raise FoldfabError(f"queue {self.path} is empty: it does not exist yet (foldfab queue add creates it)")
+        with self._lock, self._errors():
+            db = self._connect()
+            db.execute("BEGIN")
+            try:
+                yield db
+            finally:
+                db.execute("COMMIT")
+
+    @contextmanager
+    def _write(self) -> Iterator[sqlite3.Connection]:
+        """One transaction that takes the write lock first, then expires dead workers' leases."""
+        with self._lock, self._errors():
+            db = self._connect()
+            db.execute("BEGIN IMMEDIATE")
+            try:
+                self._expire(db)
+                yield db
+                db.execute("COMMIT")
+            except BaseException:
+                db.execute("ROLLBACK")
+                raise
+
+    def _params(self, **values) -> dict:
+        return {"now": time.time(), "host": self._host, "device": None, "port": None} | values
+
+    def close(self) -> None:
+        """Close the connection (the file stays)."""
+        with self._lock:
+            if self._db is not None:
+                self._db.close()
+                self._db = None
+
+    # -- helpers inside a transaction
+
+    def _expire(self, db: sqlite3.Connection) -> None:
+        params = self._params()
+        rows = db.execute("SELECT j.id, j.worker, j.lease_expires, j.cancel_requested FROM jobs j "
+                          f"WHERE j.state IN ('running', 'waiting') AND {_DEAD}", params).fetchall()
+        for job_id, worker, expires, cancel in rows:
+            if expires < params["now"]:
+                why = (f"lease expired: worker {worker} stopped renewing it at "
+                       f"{time.strftime('%H:%M:%S', time.localtime(expires))} (killed, crashed, hung, or its "
+                       "machine went off)")
+            else:
+                why = f"worker {worker} is gone (its process on this machine no longer exists)"
+            state = "cancelled" if cancel else "interrupted"
+            self._set(db, job_id, state=state, worker=None, lease_expires=None, worker_host=None,
+                      worker_pid=None, cancel_requested=0, reason=why)
+            self._event(db, job_id, state, why if cancel else
+                        why + "; the next run resumes it from the last acknowledged stroke")
+
+    @staticmethod
+    def _set(db: sqlite3.Connection, job_id: int, **values) -> None:
+        columns = ", ".join(f"{key} = ?" for key in values)
+        db.execute(f"UPDATE jobs SET {columns}, updated = ? WHERE id = ?", (*values.values(), time.time(), job_id))
+
+    @staticmethod
+    def _event(db: sqlite3.Connection, job_id: int, kind: str, message: str) -> None:
+        db.execute("INSERT INTO events (job_id, time, kind, message) VALUES (?, ?, ?, ?)",
+                   (job_id, time.time(), kind, message))
+
+    def _get(self, db: sqlite3.Connection, job_id: int) -> JobRecord:
+        row = db.execute(f"{_SELECT_JOBS} WHERE j.id = :id", self._params(id=job_id)).fetchone()
+        if row is None:
+            raise FoldfabError(f"no job {job_id} in queue {self.path}; see foldfab queue list")
+        return _record(row)
+
+    @staticmethod
+    def _owned(db: sqlite3.Connection, job_id: int, worker: WorkerId) -> tuple[str, bool] | None:
+        """(state, cancel requested) of a job ``worker`` holds, or None if it holds it no longer."""
+        row = db.execute("SELECT state, cancel_requested, worker FROM jobs WHERE id = ?", (job_id,)).fetchone()
+        return (row[0], bool(row[1])) if row and row[2] == str(worker) and row[0] in ACTIVE else None
+
+    # -- operator side
+
+    def add(self, jobs: Sequence[NewJob]) -> list[int]:
+        ids = []
+        with self._write() as db:
+            now = time.time()
+            for new in jobs:
+                snap = new.snapshot
+                snapshot_id = db.execute(
+                    "INSERT INTO snapshots (name, job_path, device, program_bytes, program_sha256, program_meta, "
+                    "job_text, device_text, program) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    (snap.name, snap.job_path, snap.device, len(snap.program.text), snap.sha256,
+                     _program_meta(snap.program), snap.job_text, snap.device_text, snap.program.text)).lastrowid
+                for copy in range(1, new.copies + 1):
+                    job_id = db.execute(
+                        "INSERT INTO jobs (snapshot_id, port, priority, copy, copies, created, updated) "
+                        "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                        (snapshot_id, new.port, new.priority, copy, new.copies, now, now)).lastrowid
+                    label = f" (copy {copy} of {new.copies})" if new.copies > 1 else ""
+                    self._event(db, job_id, "queued",
+                                f"queued{label}: {snap.job_path} on {snap.device} at {new.port}, priority "
+                                f"{new.priority}, program {len(snap.program.text)} bytes, sha256 {snap.sha256[:16]}")
+                    ids.append(job_id)
+        return ids
+
+    def jobs(self, state: str | None = None) -> list[JobRecord]:
+        if not self.path.exists():
+            return []
+        with self._read() as db:
+            where = f"WHERE {_EFFECTIVE_STATE} = :state" if state else ""
+            rows = db.execute(f"{_SELECT_JOBS} {where} ORDER BY j.id", self._params(state=state)).fetchall()
+        return [_record(row) for row in rows]
+
+    def job(self, job_id: int) -> JobRecord:
+        with self._read() as db:
+            return self._get(db, job_id)
+
+    def events(self, job_id: int) -> list[Event]:
+        with self._read() as db:
+            rows = db.execute("SELECT time, kind, message FROM events WHERE job_id = ? ORDER BY id",
+                              (job_id,)).fetchall()
+        return [Event(*row) for row in rows]
+
+    def snapshot(self, job_id: int) -> Snapshot:
+        with self._read() as db:
+            row = db.execute("SELECT s.name, s.job_path, s.job_text, s.device, s.device_text, s.program, "
+                             "s.program_meta, s.program_sha256 FROM jobs j JOIN snapshots s "
+                             "ON s.id = j.snapshot_id WHERE j.id = ?", (job_id,)).fetchone()
+        if row is None:
+            raise FoldfabError(f"no job {job_id} in queue {self.path}; see foldfab queue list")
+        *texts, program, meta, digest = row
+        snap = Snapshot(*texts, _program_from(program, meta))
+        if snap.sha256 != digest:
+            raise FoldfabError(f"job {job_id}: its stored program does not match its SHA-256 (the queue file "
+                               f"{self.path} was damaged or edited); remove the job and add it again")
+        return snap
+
+    def cancel(self, job_id: int) -> JobRecord:
+        with self._write() as db:
+            job = self._get(db, job_id)
+            if job.state in RUNNABLE:
+                self._set(db, job_id, state="cancelled", reason="cancelled by the operator")
+                self._event(db, job_id, "cancelled", f"cancelled by the operator (was {job.state})")
+            elif job.state in ACTIVE and not job.cancel_requested:
+                self._set(db, job_id, cancel_requested=1)
+                self._event(db, job_id, "cancel", f"cancel requested: worker {job.worker} stops the plotter "
+                                                  "(pen up, parked) and ends the job")
+            elif job.state not in ACTIVE:
+                raise FoldfabError(f"job {job_id} is {job.state}, nothing to cancel"
+                                   + ("; remove it with foldfab queue remove" if job.state in FINISHED else ""))
+            return self._get(db, job_id)
+
+    def retry(self, job_id: int, restart: bool = False) -> JobRecord:
+        with self._write() as db:
+            job = self._get(db, job_id)
+            if job.state not in ("failed", "cancelled", "interrupted"):
+                raise FoldfabError(f"job {job_id} is {job.state}; only failed, cancelled or interrupted jobs "
+                                   "can be retried")
+            where = "from the start, on a new sheet" if restart or not job.acked_bytes else \
+                f"from byte {job.acked_bytes} of {job.program_bytes} (the last acknowledged stroke)"
+            values = {"acked_bytes": 0, "pauses_done": 0, "progress": ""} if restart else {}
+            self._set(db, job_id, state="queued", reason=None, **values)
+            self._event(db, job_id, "retried", f"queued again (was {job.state}): runs {where}")
+            return self._get(db, job_id)
+
+    def continue_job(self, job_id: int, source: str) -> JobRecord:
+        with self._write() as db:
+            job = self._get(db, job_id)
+            if job.state != "waiting":
+                raise FoldfabError(f"job {job_id} is {job.state}, not waiting at a pause; nothing to continue")
+            self._set(db, job_id, state="running", pauses_done=job.pauses_done + 1)
+            self._event(db, job_id, "continued", f"the operator continued ({source})")
+            return self._get(db, job_id)
+
+    def remove(self, job_id: int) -> None:
+        with self._write() as db:
+            job = self._get(db, job_id)
+            if job.state in ACTIVE:
+                raise FoldfabError(f"job {job_id} is {job.state} on worker {job.worker}; cancel it first "
+                                   f"(foldfab queue cancel {job_id})")
+            self._delete(db, "id = ?", (job_id,))
+
+    def clear(self, states: Sequence[str]) -> int:
+        if not set(states) <= set(FINISHED):
+            raise ValueError(f"only finished jobs ({', '.join(FINISHED)}) can be cleared")
+        with self._write() as db:
+            return self._delete(db, f"state IN ({', '.join('?' * len(states))})", tuple(states))
+
+    @staticmethod
+    def _delete(db: sqlite3.Connection, where: str, params: tuple) -> int:
+        """Delete jobs (their events cascade) and the snapshots no job uses any more."""
+        rows = db.execute(f"SELECT id, snapshot_id FROM jobs WHERE {where}", params).fetchall()
+        db.executemany("DELETE FROM jobs WHERE id = ?", [(job_id,) for job_id, _ in rows])
+        db.executemany("DELETE FROM snapshots WHERE id = ? AND NOT EXISTS "
+                       "(SELECT 1 FROM jobs WHERE snapshot_id = ?)", [(s, s) for s in {s for _, s in rows}])
+        return len(rows)
+
+    # -- worker side
+
+    def runnable(self, device: str | None = None, port: str | None = None) -> list[JobRecord]:
+        if not self.path.exists():
+            return []
+        with self._read() as db:
+            rows = db.execute(_RUNNABLE, self._params(device=device, port=port)).fetchall()
+        return [_record(row) for row in rows]
+
+    def claim(self, worker: WorkerId, lease: float, device: str | None = None,
+              port: str | None = None) -> Claim | None:
+        while True:
+            with self._write() as db:
+                row = db.execute(f"{_RUNNABLE} LIMIT 1", self._params(device=device, port=port)).fetchone()
+                if row is None:
+                    return None
+                job = _record(row)
+                self._set(db, job.id, state="running", worker=str(worker), worker_host=worker.host,
+                          worker_pid=worker.pid, lease_expires=time.time() + lease, attempts=job.attempts + 1,
+                          cancel_requested=0, reason=None)
+                what = f"resumed at byte {job.acked_bytes} of {job.program_bytes}" if job.acked_bytes else "started"
+                self._event(db, job.id, "started", f"{what} by worker {worker} (attempt {job.attempts + 1})")
+                job = self._get(db, job.id)
+            try:
+                return Claim(job, self.snapshot(job.id))
+            except FoldfabError as exc:  # a damaged snapshot fails its job, not the worker
+                self.finish(job.id, worker, "failed", str(exc))
+
+    def heartbeat(self, job_id: int, worker: WorkerId, lease: float, acked_bytes: int | None = None,
+                  progress: str | None = None) -> Control:
+        with self._write() as db:
+            owned = self._owned(db, job_id, worker)
+            if owned is None:
+                return Control("lost", False, True)
+            values: dict = {"lease_expires": time.time() + lease}
+            if acked_bytes is not None:
+                values["acked_bytes"] = acked_bytes
+            if progress is not None:
+                values["progress"] = progress
+            self._set(db, job_id, **values)
+            return Control(*owned, False)
+
+    def log(self, job_id: int, kind: str, message: str) -> None:
+        with self._write() as db:
+            self._event(db, job_id, kind, message)
+
+    def wait_at_pause(self, job_id: int, worker: WorkerId, message: str) -> Control:
+        with self._write() as db:
+            owned = self._owned(db, job_id, worker)
+            if owned is None:
+                return Control("lost", False, True)
+            self._set(db, job_id, state="waiting")
+            self._event(db, job_id, "pause", message)
+            return Control("waiting", owned[1], False)
+
+    def finish(self, job_id: int, worker: WorkerId, state: str, message: str,
+               acked_bytes: int | None = None) -> bool:
+        if state not in ("done", "failed", "cancelled", "interrupted"):
+            raise ValueError(f"a job cannot finish as {state!r}")
+        with self._write() as db:
+            if self._owned(db, job_id, worker) is None:
+                return False
+            values: dict = {"acked_bytes": acked_bytes} if acked_bytes is not None else {}
+            self._set(db, job_id, state=state, worker=None, lease_expires=None, worker_host=None,
+                      worker_pid=None, cancel_requested=0, reason=None if state == "done" else message,
+                      **values)
+            self._event(db, job_id, state, message)
+            return True
+
+
+def _record(row: tuple) -> JobRecord:
+    values = list(row)
+    values[17] = bool(values[17])  # cancel_requested
+    return JobRecord(*values)
