@@ -11,7 +11,9 @@ repetition, and HPGL pauses (which exist only as offsets) are placed.
 arrive, get complete :class:`HPGLCommand` objects.  It knows HP-GL's syntax (two-letter
 mnemonics, numbers separated by commas, spaces or signs, optional ``;`` terminators,
 ``LB`` labels ended by ETX, and ``ESC .`` device-control sequences), not the meaning
-of commands, so a simulated plotter can reuse it.
+of commands, so a simulated plotter can reuse it.  The machines that give commands
+their meaning (:class:`HPGLMachine`, :class:`GcodeMachine`) are public for the same
+reason: ``foldfab.sim`` runs them command by command on a virtual clock.
 """
 
 from __future__ import annotations
@@ -47,17 +49,35 @@ class HPGLCommand:
     """The label of ``LB``."""
     error: str | None = None
     """Why the parameters could not be read, if they could not."""
+    part: int = 0
+    """0, or the index of this coordinate pair's piece when the tokenizer splits coordinates."""
+
+
+COORDINATE_COMMANDS = ("PU", "PD", "PA", "PR")
 
 
 class HPGLTokenizer:
-    """Incremental HP-GL tokenizer: ``feed(bytes)`` returns the commands completed so far."""
+    """Incremental HP-GL tokenizer: ``feed(bytes)`` returns the commands completed so far.
 
-    def __init__(self) -> None:
+    With ``split_coordinates``, ``PU``/``PD``/``PA``/``PR`` come out one coordinate pair
+    at a time, each as soon as its pair is complete (``PD1,2,3,4;`` gives ``PD 1,2``
+    at offset 0 and ``PD 3,4`` with ``part`` 1 at the ``3``); HP-GL means the same, and a
+    plotter executes a long polyline pair by pair instead of holding it whole.
+    """
+
+    def __init__(self, split_coordinates: bool = False) -> None:
         self.offset = 0  # bytes consumed so far
+        self._split = split_coordinates
         self._state = "idle"
         self._name = ""
         self._start = 0
+        self._part = 0
         self._pending = bytearray()
+
+    @property
+    def committed(self) -> int:
+        """Every byte before this offset belongs to a command already returned, or to none."""
+        return self.offset if self._state == "idle" else self._start
 
     def feed(self, data: bytes) -> list[HPGLCommand]:
         """Consume ``data``; return every command it completes."""
@@ -69,6 +89,8 @@ class HPGLTokenizer:
                 end = _PARAM_RUN.match(data, i).end()
                 self._pending += data[i:end]
                 i = end
+                if self._split and self._name in COORDINATE_COMMANDS:
+                    out += self._pairs(self.offset + i)
                 if i == n:
                     break
                 byte = data[i]
@@ -94,6 +116,7 @@ class HPGLTokenizer:
                     self._state, self._start = "esc", position
                 elif chr(byte).isalpha():
                     self._state, self._start, self._name = "mnemonic", position, chr(byte).upper()
+                    self._part = 0
             elif state == "mnemonic":
                 if chr(byte).isalpha():
                     self._name += chr(byte).upper()
@@ -129,6 +152,23 @@ class HPGLTokenizer:
         state, self._state = self._state, "idle"
         if state == "label":
             return HPGLCommand(self._name, (), self._start, text=text)
+        return self._command(text, separator)
+
+    def _pairs(self, position: int) -> list[HPGLCommand]:
+        """Split complete coordinate pairs off the pending parameters (``position``: their end)."""
+        text = self._pending.decode("latin-1")
+        ends = [m.end() for m in _NUMBER.finditer(text) if m.end() < len(text)]  # followed by more
+        if len(ends) < 2:
+            return []
+        pieces, cut = [], 0
+        for end in ends[1::2]:
+            pieces.append(self._command(text[cut:end], ","))
+            self._start, cut = position - len(text) + end, end
+            self._part += 1
+        del self._pending[:cut]
+        return pieces
+
+    def _command(self, text: str, separator: str) -> HPGLCommand:
         numbers, end, bad = [], 0, False
         for match in _NUMBER.finditer(text):
             gap = text[end:match.start()]
@@ -139,7 +179,7 @@ class HPGLTokenizer:
             end = match.end()
         bad |= bool(text[end:].replace(separator, " ").strip())
         error = f"cannot read parameters {text!r}" if bad else None
-        return HPGLCommand(self._name, tuple(numbers), self._start, error=error)
+        return HPGLCommand(self._name, tuple(numbers), self._start, error=error, part=self._part)
 
 
 @dataclass
@@ -236,11 +276,11 @@ def interpret(program: Program | str, device: DeviceProfile,
         raise FoldfabError(f"a {known.protocol} program cannot run on {device.name} "
                            f"({device.protocol})")
     if device.protocol == "hpgl":
-        return _HPGLMachine(device, frame, known).run(text)
-    return _GcodeMachine(device, frame, known).run(text)
+        return HPGLMachine(device, frame, known).run(text)
+    return GcodeMachine(device, frame, known).run(text)
 
 
-class _Machine:
+class Machine:
     """Shared bookkeeping: position, pen state, strokes, travels (in device units)."""
 
     def __init__(self, protocol: str, device: DeviceProfile, frame: Frame, known: Program | None):
@@ -259,11 +299,14 @@ class _Machine:
 
     def lift(self) -> None:
         if self.stroke is not None:
-            points = self.frame.to_sheet(self.stroke)
-            meta = self.stroke_meta
-            section = self.known.section_at(meta["offset"]) if self.known else None
-            self.result.strokes.append(Stroke(points=points, section=section, end=self.at, **meta))
+            self.result.strokes.append(self.open_stroke())
             self.stroke = None
+
+    def open_stroke(self) -> Stroke:
+        """The stroke being drawn (pen down now), as it would be if the pen went up here."""
+        meta = self.stroke_meta
+        section = self.known.section_at(meta["offset"]) if self.known else None
+        return Stroke(points=self.frame.to_sheet(self.stroke), section=section, end=self.at, **meta)
 
     def move_to(self, target: tuple[float, float]) -> None:
         if self.stroke is not None:
@@ -277,18 +320,22 @@ class _Machine:
         return x, y
 
     def finish(self) -> Interpretation:
-        import numpy as np
-
         self.lift()
-        if self.raw_travels:
-            ends = np.array([[a, b] for a, b, _ in self.raw_travels]).reshape(-1, 2)
-            sheet = self.frame.to_sheet(ends).reshape(-1, 2, 2).tolist()
-            self.result.travels = [Travel(tuple(s), tuple(e), nxt)
-                                   for (s, e), (_, _, nxt) in zip(sheet, self.raw_travels)]
+        self.result.travels = self.sheet_travels()
         return self.result
 
+    def sheet_travels(self) -> list[Travel]:
+        """The pen-up moves so far, in sheet mm."""
+        import numpy as np
 
-class _HPGLMachine(_Machine):
+        if not self.raw_travels:
+            return []
+        ends = np.array([[a, b] for a, b, _ in self.raw_travels]).reshape(-1, 2)
+        sheet = self.frame.to_sheet(ends).reshape(-1, 2, 2).tolist()
+        return [Travel(tuple(s), tuple(e), nxt) for (s, e), (_, _, nxt) in zip(sheet, self.raw_travels)]
+
+
+class HPGLMachine(Machine):
     """HP-GL semantics for PU, PD, PA, PR, SP, VS, FS, IN, DF."""
 
     def __init__(self, device, frame, known):
@@ -364,9 +411,43 @@ class _HPGLMachine(_Machine):
 
 _WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\(([^)]*)\)?|;(.*)$")
+SUPPORTED_G = frozenset({0, 1, 4, 17, 20, 21, 90, 91, 92})
+SUPPORTED_M = frozenset({0, 2, 3, 5})
 
 
-class _GcodeMachine(_Machine):
+@dataclass(frozen=True)
+class GcodeLine:
+    """One G-code line read but not yet executed."""
+
+    raw: str
+    offset: int
+    words: list[tuple[str, float]]
+    """(letter, value) in order, comments removed."""
+    comments: list[str]
+    unreadable: bool
+    """Some of the text (outside comments) is not a letter followed by a number."""
+    unsupported: list[str]
+    """G and M words GRBL 1.1 does not take ("G2", "M8")."""
+
+    @property
+    def problems(self) -> list[str]:
+        """What an interpreter reports as ignored."""
+        lead = [f"line at byte {self.offset}: {self.raw.strip()!r}"] if self.unreadable else []
+        return lead + self.unsupported
+
+
+def read_gcode_line(raw: str, offset: int = 0) -> GcodeLine:
+    """Words, comments and problems of the line ``raw`` found at byte ``offset``."""
+    comments = [a or b for a, b in _COMMENT.findall(raw)]
+    code = _COMMENT.sub(" ", raw).upper()
+    words = [(letter, float(number)) for letter, number in _WORD.findall(code)]
+    unsupported = [f"{letter}{value:g}" for letter, value in words
+                   if (letter == "G" and value not in SUPPORTED_G)
+                   or (letter == "M" and value not in SUPPORTED_M)]
+    return GcodeLine(raw, offset, words, comments, bool(_WORD.sub(" ", code).strip()), unsupported)
+
+
+class GcodeMachine(Machine):
     """GRBL semantics for G0 G1 G4 G17 G20 G21 G90 G91 G92 M0 M2 M3 M5 and X Y Z F S."""
 
     def __init__(self, device, frame, known):
@@ -396,17 +477,17 @@ class _GcodeMachine(_Machine):
         return self.finish()
 
     def execute(self, raw: str, offset: int, end: int) -> None:
-        comments = [a or b for a, b in _COMMENT.findall(raw)]
-        code = _COMMENT.sub(" ", raw).upper()
-        words = _WORD.findall(code)
-        if _WORD.sub(" ", code).strip():
-            self.result.ignored.append(f"line at byte {offset}: {raw.strip()!r}")
-        if not words:
-            self.comments.extend(c.strip() for c in comments)
+        self.apply(read_gcode_line(raw, offset), end)
+
+    def apply(self, line: GcodeLine, end: int) -> None:
+        """Execute a line read by :func:`read_gcode_line` (``end``: offset after its newline)."""
+        offset = line.offset
+        self.result.ignored.extend(line.problems)
+        if not line.words:
+            self.comments.extend(c.strip() for c in line.comments)
             return
         values = {}
-        for letter, number in words:
-            value = float(number)
+        for letter, value in line.words:
             if letter == "G":
                 self.g_word(value)
             elif letter == "M":
@@ -439,8 +520,6 @@ class _GcodeMachine(_Machine):
             self.absolute = value == 90
         elif value == 92:
             self.g92_pending = True
-        elif value not in (4, 17):
-            self.result.ignored.append(f"G{value:g}")
 
     def set_position(self, values: dict) -> None:
         """G92: the current point gets the given coordinates (an offset, not a move)."""
@@ -477,8 +556,6 @@ class _GcodeMachine(_Machine):
         elif value in (3, 5) and self.servo:
             command = "M5" if value == 5 else f"M3 S{self.spindle:g}"
             self.pen_state(_servo_key(command) in self.down_commands, command, offset)
-        elif value not in (3, 5):
-            self.result.ignored.append(f"M{value:g}")
 
     def pen_state(self, down: bool, by, offset: int) -> None:
         if down and not self.is_down:
