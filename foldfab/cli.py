@@ -36,8 +36,17 @@ def cmd_design(args: argparse.Namespace) -> int:
 
     outputs = _design_outputs(args)
     design = load_design(args.job, allow_penetration=args.allow_penetration)
-    for kind, path in outputs:
-        write_design_file(design, kind, path)
+    written: list[Path] = []
+    try:
+        for kind, path in outputs:
+            write_design_file(design, kind, path)
+            written.append(path)
+    except OSError as exc:  # e.g. the path is a folder or not writable: one line, and no partial set of files
+        from foldfab.errors import FoldfabError
+
+        for done in written:
+            done.unlink(missing_ok=True)
+        raise FoldfabError(f"--{kind} {path}: cannot write: {exc.strerror or exc}") from None
     info = summary(design)
     info["written"] = [str(p) for _, p in outputs]
     for warning in design.warnings:

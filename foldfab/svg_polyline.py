@@ -50,6 +50,14 @@ def _page_transform(root, where: str) -> tuple[float, float, float, float]:
     return unit, unit, 0.0, page_h
 
 
+def _to_segment(q: complex, p0: complex, p1: complex) -> float:
+    """Distance from ``q`` to the segment p0-p1 (the chord, not its infinite line)."""
+    chord = p1 - p0
+    n2 = chord.real ** 2 + chord.imag ** 2  # tested itself: a tiny chord's square can underflow to 0
+    s = ((q - p0) * np.conj(chord)).real / n2 if n2 > 0 else 0.0
+    return abs(q - (p0 + min(max(s, 0.0), 1.0) * chord))
+
+
 def _sample(path, samples: int | None, tolerance: float, scale: float) -> np.ndarray:
     """Points along an svgpathtools Path, in user units (complex)."""
     from svgpathtools import Line
@@ -70,10 +78,11 @@ def _sample(path, samples: int | None, tolerance: float, scale: float) -> np.nda
         while stack:
             t0, t1 = stack.pop()
             p0, p1 = seg.point(t0), seg.point(t1)
-            ts = np.linspace(t0, t1, 5)[1:-1]
-            chord = p1 - p0
-            err = max(abs(((seg.point(t) - p0) * np.conj(chord)).imag) / abs(chord) if abs(chord) > 0
-                      else abs(seg.point(t) - p0) for t in ts)
+            if hasattr(seg, "bpoints"):  # a Bezier piece lies in the convex hull of its control points
+                probes = seg.cropped(t0, t1).bpoints()[1:-1]
+            else:
+                probes = [seg.point(t) for t in np.linspace(t0, t1, 5)[1:-1]]
+            err = max(_to_segment(q, p0, p1) for q in probes)
             if err > tol and t1 - t0 > 1e-6:
                 tm = 0.5 * (t0 + t1)
                 stack.append((tm, t1))
@@ -112,7 +121,7 @@ def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = Non
     if not chosen_path.iscontinuous():
         raise FoldfabError(f"{where}: the chosen path of {file} has several pieces (subpaths); use one continuous path")
     sx, sy, min_x, bottom = _page_transform(root, f"{file}")
-    pts = _sample(chosen_path, samples, tolerance or DEFAULT_TOLERANCE, min(sx, sy))
+    pts = _sample(chosen_path, samples, tolerance or DEFAULT_TOLERANCE, max(sx, sy))
     out = np.column_stack([(pts.real - min_x) * sx, (bottom - pts.imag) * sy])
     keep = np.ones(len(out), bool)
     keep[1:] = np.any(np.abs(np.diff(out, axis=0)) > 1e-12, axis=1)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 from foldfab import __version__
 from foldfab.crease_pattern import CreasePattern
 
@@ -27,7 +29,8 @@ def to_fold(cp: CreasePattern, title: str = "") -> dict:
         "vertices_coords": cp.vertices.round(9).tolist(),
         "edges_vertices": cp.edges.tolist(),
         "edges_assignment": cp.assignment.tolist(),
-        "edges_foldAngle": cp.fold_angle.round(9).tolist(),
+        # FOLD: "zero for flat, unassigned, and border folds" (F creases bend less than flat_angle).
+        "edges_foldAngle": np.where(np.isin(cp.assignment, ("M", "V")), cp.fold_angle, 0.0).round(9).tolist(),
         "faces_vertices": cp.face_polygons(),
         "file_frames": [{
             "frame_title": "folded form",
