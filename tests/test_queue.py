@@ -1,0 +1,494 @@
+"""The job queue's storage: snapshots, states, claims, leases, schema migrations and file errors."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import shutil
+import sqlite3
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from foldfab.cli import main
+from foldfab.devices import load_device
+from foldfab.errors import FoldfabError
+from foldfab.program import PauseMark, Program
+from foldfab.queue import (MIGRATIONS, SCHEMA_VERSION, NewJob, SqliteQueueStore, WorkerId,
+                           load_snapshot_device, make_snapshot)
+
+ROOT = Path(__file__).resolve().parent.parent
+HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
+
+
+def snapshot(text: str = "IN;SP1;PU0,0;PD400,400;SP0;", name: str = "test job", pauses=()):
+    """A snapshot of a hand-written program (no geometry needed to test storage)."""
+    device = load_device("graphtec-ce6000")
+    program = Program(text, "hpgl", device.name, (), tuple(pauses))
+    return make_snapshot(Path("job.toml"), "[design]\n", name, device, program)
+
+
+def fill(store: SqliteQueueStore, ports: list[str], per_port: int) -> list[int]:
+    return store.add([NewJob(snapshot(), port, 0, per_port) for port in ports])
+
+
+@pytest.fixture()
+def store(tmp_path):
+    store = SqliteQueueStore(tmp_path / "queue.sqlite3", wait=2.0)
+    yield store
+    store.close()
+
+
+def run_cli(capsys, *args: str) -> tuple[int, str, str]:
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+# --- states and transitions ------------------------------------------------------------------
+
+
+def test_add_list_and_snapshot_round_trip(store):
+    snap = snapshot(pauses=[PauseMark(12, 1, "flip the sheet")])
+    ids = store.add([NewJob(snap, "sim://a", 2, 3)])
+    assert ids == [1, 2, 3]
+    jobs = store.jobs()
+    assert [(j.id, j.copy, j.copies, j.state, j.priority) for j in jobs] == \
+        [(1, 1, 3, "queued", 2), (2, 2, 3, "queued", 2), (3, 3, 3, "queued", 2)]
+    assert store.snapshot(2) == snap  # program text, sections, pauses and both texts
+    assert load_snapshot_device(snap).name == "graphtec-ce6000"
+    assert [e.kind for e in store.events(1)] == ["queued"]
+    assert store.jobs("running") == []
+
+
+def test_claim_order_priority_then_arrival_and_one_job_per_port(store):
+    store.add([NewJob(snapshot(name="low"), "sim://a", 0, 2), NewJob(snapshot(name="high"), "sim://a", 5),
+               NewJob(snapshot(name="other port"), "sim://b", 1)])
+    worker = WorkerId.current()
+    first = store.claim(worker, 30)
+    assert (first.job.id, first.job.name, first.job.state) == (3, "high", "running")
+    second = store.claim(worker, 30)
+    assert second.job.port == "sim://b"  # sim://a is busy
+    assert store.claim(worker, 30) is None
+    store.finish(first.job.id, worker, "done", "done")
+    assert store.claim(worker, 30).job.id == 1
+    assert store.claim(worker, 30, device="graphtec-ce6000") is None
+    assert store.runnable() == []
+
+
+def test_interrupted_job_goes_first_and_blocks_its_plotter(store):
+    fill(store, ["sim://a"], 2)
+    worker = WorkerId.current()
+    claim = store.claim(worker, 30)
+    store.heartbeat(claim.job.id, worker, 30, acked_bytes=7, progress="stroke 1/2")
+    store.finish(claim.job.id, worker, "interrupted", "serial port vanished")
+    store.add([NewJob(snapshot(), "sim://a", 9)])
+    assert [j.id for j in store.runnable()] == [1]  # the half-drawn sheet is on the plotter
+    again = store.claim(worker, 30)
+    assert (again.job.id, again.job.acked_bytes, again.job.attempts) == (1, 7, 2)
+    assert "resumed at byte 7" in store.events(1)[-1].message
+
+
+def test_cancel_queued_running_and_waiting(store):
+    fill(store, ["sim://a", "sim://b"], 2)
+    assert store.cancel(2).state == "cancelled"
+    worker = WorkerId.current()
+    claim = store.claim(worker, 30)
+    job = store.cancel(claim.job.id)
+    assert job.state == "running" and job.cancel_requested
+    control = store.heartbeat(claim.job.id, worker, 30)
+    assert control.cancel_requested and not control.lost
+    assert store.finish(claim.job.id, worker, "cancelled", "cancelled: pen up, parked at byte 5")
+    assert store.job(claim.job.id).reason == "cancelled: pen up, parked at byte 5"
+    waiting = store.claim(worker, 30)
+    assert store.wait_at_pause(waiting.job.id, worker, "flip the sheet").state == "waiting"
+    assert store.cancel(waiting.job.id).cancel_requested
+    with pytest.raises(FoldfabError, match="is cancelled, nothing to cancel; remove it"):
+        store.cancel(2)
+
+
+def test_continue_retry_remove_clear(store):
+    fill(store, ["sim://a"], 3)
+    worker = WorkerId.current()
+    claim = store.claim(worker, 30)
+    with pytest.raises(FoldfabError, match="not waiting at a pause"):
+        store.continue_job(claim.job.id, "test")
+    store.wait_at_pause(claim.job.id, worker, "flip the sheet")
+    assert store.heartbeat(claim.job.id, worker, 30).state == "waiting"
+    job = store.continue_job(claim.job.id, "test")
+    assert (job.state, job.pauses_done) == ("running", 1)
+    assert store.heartbeat(claim.job.id, worker, 30).state == "running"
+    with pytest.raises(FoldfabError, match="cancel it first"):
+        store.remove(claim.job.id)
+    store.heartbeat(claim.job.id, worker, 30, acked_bytes=10)
+    store.finish(claim.job.id, worker, "failed", "plotter error 3 at byte 10")
+    assert store.job(1).reason == "plotter error 3 at byte 10"
+    with pytest.raises(FoldfabError, match="only failed, cancelled or interrupted"):
+        store.retry(2)
+    assert (store.retry(1).state, store.job(1).acked_bytes) == ("queued", 10)  # resumes by default
+    store.cancel(1)
+    job = store.retry(1, restart=True)
+    assert (job.state, job.acked_bytes, job.pauses_done) == ("queued", 0, 0)
+    claim = store.claim(worker, 30)
+    store.finish(claim.job.id, worker, "done", "finished")
+    assert store.clear(["done"]) == 1
+    store.remove(2)
+    assert [j.id for j in store.jobs()] == [3]
+    with pytest.raises(FoldfabError, match="no job 2"):
+        store.events(2) or store.job(2)
+    assert store.snapshot(3)  # the shared snapshot stays while a copy uses it
+    store.remove(3)
+    with sqlite3.connect(store.path) as db:
+        assert db.execute("SELECT count(*) FROM snapshots").fetchone() == (0,)
+        assert db.execute("SELECT count(*) FROM events").fetchone() == (0,)
+
+
+def test_worker_loses_a_job_it_no_longer_holds(store):
+    fill(store, ["sim://a"], 1)
+    worker, other = WorkerId.current(), WorkerId.current()
+    claim = store.claim(worker, 30)
+    assert store.heartbeat(claim.job.id, other, 30).lost
+    assert not store.finish(claim.job.id, other, "done", "not mine")
+    assert store.job(claim.job.id).state == "running"
+
+
+# --- leases -----------------------------------------------------------------------------------
+
+
+def test_expired_lease_interrupts_and_the_next_claim_resumes(store):
+    fill(store, ["sim://a"], 1)
+    dead, alive = WorkerId.current(), WorkerId.current()
+    claim = store.claim(dead, 0.2)
+    store.heartbeat(claim.job.id, dead, 0.2, acked_bytes=9, progress="stroke 1/2")
+    time.sleep(0.3)
+    listed = store.jobs()[0]  # reads show what the next write will make of it, without writing
+    assert listed.state == "interrupted" and "stopped renewing" in listed.reason
+    assert store.jobs("interrupted") == [listed]
+    again = store.claim(alive, 30)
+    assert (again.job.id, again.job.acked_bytes, again.job.worker) == (claim.job.id, 9, str(alive))
+    kinds = [e.kind for e in store.events(claim.job.id)]
+    assert kinds == ["queued", "started", "interrupted", "started"]
+    assert "lease expired" in store.events(claim.job.id)[2].message
+    assert store.heartbeat(claim.job.id, dead, 30).lost  # the old worker cannot take it back
+
+
+def test_worker_process_gone_on_this_machine_is_noticed_before_its_lease_ends(store):
+    fill(store, ["sim://a"], 1)
+    process = subprocess.Popen([sys.executable, "-c", "pass"])
+    process.wait()
+    ghost = WorkerId(WorkerId.current().host, process.pid, "ghost")
+    store.claim(ghost, 3600)
+    assert store.jobs()[0].state == "interrupted"
+    claim = store.claim(WorkerId.current(), 30)
+    assert claim is not None and "no longer exists" in store.events(claim.job.id)[2].message
+
+
+def test_cancel_requested_then_worker_dies_ends_cancelled(store):
+    fill(store, ["sim://a"], 1)
+    worker = WorkerId.current()
+    claim = store.claim(worker, 0.2)
+    store.cancel(claim.job.id)
+    time.sleep(0.3)
+    assert store.jobs()[0].state == "cancelled"
+    assert store.claim(worker, 30) is None
+    assert store.job(claim.job.id).state == "cancelled"
+
+
+# --- racing workers ---------------------------------------------------------------------------
+
+
+def _drain(path: str, results, ports_in_use, lock, delay: float = 0.0) -> None:
+    """A minimal worker: claim, 'plot', finish, until nothing is left; record what it ran."""
+    store = SqliteQueueStore(path, wait=30)
+    worker = WorkerId.current()
+    while True:
+        claim = store.claim(worker, 30)
+        if claim is None:
+            if not store.runnable() and not [j for j in store.jobs() if j.state in ("running", "waiting")]:
+                break
+            time.sleep(0.01)
+            continue
+        with lock:
+            assert claim.job.port not in ports_in_use, "two jobs on one plotter"
+            ports_in_use.append(claim.job.port)
+        time.sleep(delay)
+        with lock:
+            ports_in_use.remove(claim.job.port)
+        assert store.finish(claim.job.id, worker, "done", "finished")
+        results.append(claim.job.id)
+    store.close()
+
+
+def test_threads_racing_run_every_job_exactly_once(store):
+    ids = fill(store, [f"sim://p{i}" for i in range(5)], 12)
+    results: list[int] = []
+    in_use: list[str] = []
+    lock = threading.Lock()
+    threads = [threading.Thread(target=_drain, args=(str(store.path), results, in_use, lock, 0.002))
+               for _ in range(8)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert sorted(results) == ids
+    assert {j.state for j in store.jobs()} == {"done"}
+    assert all(j.attempts == 1 for j in store.jobs())
+
+
+def test_processes_racing_run_every_job_exactly_once(store):
+    ids = fill(store, [f"sim://p{i}" for i in range(4)], 15)
+    context = multiprocessing.get_context("spawn")
+    with context.Manager() as manager:
+        results, in_use, lock = manager.list(), manager.list(), manager.Lock()
+        processes = [context.Process(target=_drain, args=(str(store.path), results, in_use, lock, 0.002))
+                     for _ in range(4)]
+        for process in processes:
+            process.start()
+        for process in processes:
+            process.join(120)
+            assert process.exitcode == 0
+        assert sorted(results) == ids
+    assert [len([e for e in store.events(i) if e.kind == "started"]) for i in ids] == [1] * len(ids)
+
+
+# --- the file: schema, locks, permissions, damage ---------------------------------------------
+
+
+def test_upgrade_from_schema_version_1(tmp_path):
+    path = tmp_path / "old.sqlite3"
+    db = sqlite3.connect(path)
+    db.executescript(MIGRATIONS[0])
+    db.execute("PRAGMA user_version = 1")
+    snap = snapshot()
+    from foldfab.queue import _program_meta
+
+    db.execute("INSERT INTO snapshots (name, job_path, device, program_bytes, program_sha256, program_meta, "
+               "job_text, device_text, program) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+               (snap.name, snap.job_path, snap.device, len(snap.program.text), snap.sha256,
+                _program_meta(snap.program), snap.job_text, snap.device_text, snap.program.text))
+    db.execute("INSERT INTO jobs (snapshot_id, port, state, created, updated, acked_bytes) "
+               "VALUES (1, 'sim://a', 'interrupted', 0, 0, 4)")
+    db.commit()
+    db.close()
+    store = SqliteQueueStore(path)
+    job = store.job(1)
+    assert (job.state, job.acked_bytes, job.progress) == ("interrupted", 4, "")
+    claim = store.claim(WorkerId.current(), 30)
+    assert claim.snapshot == snap and claim.job.acked_bytes == 4
+    store.close()
+    db = sqlite3.connect(path)
+    assert db.execute("PRAGMA user_version").fetchone() == (SCHEMA_VERSION,)
+    assert db.execute("PRAGMA journal_mode").fetchone() == ("wal",)
+    assert db.execute("SELECT worker_host, worker_pid FROM jobs").fetchone() == (claim.job.worker.split("/")[0],
+                                                                                 os.getpid())
+    db.close()
+
+
+def test_newer_schema_and_foreign_files_are_refused(tmp_path):
+    newer = tmp_path / "newer.sqlite3"
+    with sqlite3.connect(newer) as db:
+        db.execute(f"PRAGMA user_version = {SCHEMA_VERSION + 1}")
+    with pytest.raises(FoldfabError, match="schema version 3, but this foldfab knows only up to 2: upgrade"):
+        SqliteQueueStore(newer).jobs()
+    other = tmp_path / "other.sqlite3"
+    with sqlite3.connect(other) as db:
+        db.execute("CREATE TABLE photos (x)")
+    with pytest.raises(FoldfabError, match="not a foldfab queue"):
+        SqliteQueueStore(other).jobs()
+
+
+def test_locked_queue_waits_then_says_so_and_loses_nothing(store, capsys):
+    fill(store, ["sim://a"], 2)
+    blocker = sqlite3.connect(store.path, isolation_level=None)
+    blocker.execute("BEGIN IMMEDIATE")
+    started = time.monotonic()
+    impatient = SqliteQueueStore(store.path, wait=0.3)
+    with pytest.raises(FoldfabError, match=r"is busy: another foldfab kept it locked for more than 0.3 s; "
+                                           "nothing was changed"):
+        impatient.cancel(1)
+    assert time.monotonic() - started >= 0.3
+    assert [j.state for j in impatient.jobs()] == ["queued", "queued"]  # readers are not blocked (WAL)
+    code, _, err = run_cli(capsys, "queue", "remove", "1", "--queue", str(store.path), "--wait", "0.2")
+    assert code == 2 and "is busy" in err and "--wait" in err
+    blocker.execute("ROLLBACK")
+    blocker.close()
+    assert [j.id for j in store.jobs()] == [1, 2]
+    assert impatient.cancel(1).state == "cancelled"
+
+
+def _as_nobody(func, *args) -> None:
+    """Run ``func(*args)`` in a child process that cannot write root's files (or in this one when not root)."""
+    if os.geteuid() != 0:
+        func(*args)
+        return
+    pid = os.fork()
+    if pid == 0:
+        code = 1
+        try:
+            os.setgid(65534)
+            os.setuid(65534)
+            func(*args)
+            code = 0
+        finally:
+            os._exit(code)
+    assert os.waitpid(pid, 0)[1] == 0, "the checks in the unprivileged child failed"
+
+
+def _read_only_checks(path: Path) -> None:
+    store = SqliteQueueStore(path, wait=0.5)
+    assert [j.id for j in store.jobs()] == [1]
+    try:
+        store.cancel(1)
+    except FoldfabError as exc:
+        assert f"queue file {path} is read-only for you" in str(exc) and "nothing was changed" in str(exc)
+    else:
+        raise AssertionError("a read-only queue accepted a change")
+
+
+def test_read_only_queue_file():
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="foldfab-queue-test-"))  # pytest's folders are private to their owner
+    try:
+        os.chmod(folder, 0o777)  # a shared folder; the file itself is read-only
+        path = folder / "queue.sqlite3"
+        store = SqliteQueueStore(path)
+        fill(store, ["sim://a"], 1)
+        store.close()
+        os.chmod(path, 0o444)
+        _as_nobody(_read_only_checks, path)
+        os.chmod(path, 0o644)
+        assert SqliteQueueStore(path).job(1).state == "queued"
+    finally:
+        shutil.rmtree(folder)
+
+
+def test_damaged_queue_file_is_reported_and_left_alone(tmp_path, capsys):
+    path = tmp_path / "queue.sqlite3"
+    path.write_bytes(b"this is not a database, it was overwritten by mistake\n" * 200)
+    before = path.read_bytes()
+    for args in (["list"], ["show", "1"], ["cancel", "1"], ["add", str(HEXAGON), "--device", "graphtec-ce6000"]):
+        code, _, err = run_cli(capsys, "queue", *args, "--queue", str(path))
+        assert code == 2, args
+        assert f"queue file {path} is damaged (file is not a database); nothing was changed; move it aside" in err
+    assert path.read_bytes() == before
+
+
+def test_damaged_pages_inside_a_queue_are_reported(store):
+    fill(store, ["sim://a"], 200)
+    store.close()
+    with sqlite3.connect(store.path) as db:
+        db.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+        page = db.execute("PRAGMA page_size").fetchone()[0]
+    data = bytearray(store.path.read_bytes())
+    for offset in range(2 * page, len(data), page):
+        data[offset:offset + 64] = b"\xff" * 64
+    store.path.write_bytes(bytes(data))
+    with pytest.raises(FoldfabError, match="is damaged .*sqlite3 .* .recover"):
+        SqliteQueueStore(store.path).jobs()
+
+
+def test_tampered_program_fails_its_job_not_the_worker(store):
+    fill(store, ["sim://a", "sim://b"], 1)
+    with sqlite3.connect(store.path) as db:
+        db.execute("UPDATE snapshots SET program = 'IN;PD0,0;' WHERE id = 1")
+    claim = store.claim(WorkerId.current(), 30)
+    assert claim.job.id == 2
+    job = store.job(1)
+    assert job.state == "failed" and "does not match its SHA-256" in job.reason
+
+
+# --- the command line ---------------------------------------------------------------------------
+
+
+def test_cli_add_list_show_and_actions(tmp_path, capsys):
+    queue = ["--queue", str(tmp_path / "q.sqlite3")]
+    code, out, _ = run_cli(capsys, "queue", "add", str(HEXAGON), "--device", "graphtec-ce6000",
+                           "--port", "sim://graphtec-ce6000", "--copies", "2", "--priority", "4", *queue)
+    assert code == 0 and "queued jobs 1-2: hexagon relief, Figure 8 (a) on graphtec-ce6000" in out
+    code, out, _ = run_cli(capsys, "queue", "list", *queue)
+    assert out.splitlines()[1].split()[:4] == ["1", "queued", "4", "graphtec-ce6000"]
+    code, out, _ = run_cli(capsys, "queue", "show", "2", *queue)
+    assert "copy 2 of 2" in out and "queued (copy 2 of 2)" in out
+    assert run_cli(capsys, "queue", "cancel", "2", *queue)[1] == "job 2 cancelled\n"
+    assert "queued again" in run_cli(capsys, "queue", "retry", "2", *queue)[1]
+    code, _, err = run_cli(capsys, "queue", "continue", "1", *queue)
+    assert code == 2 and "job 1 is queued, not waiting at a pause" in err
+    import json
+
+    listed = json.loads(run_cli(capsys, "queue", "list", "--state", "queued", "--json", *queue)[1])
+    assert [j["id"] for j in listed] == [1, 2]
+    assert run_cli(capsys, "queue", "remove", "1", *queue)[1] == "job 1 removed\n"
+    assert run_cli(capsys, "queue", "clear", "--done", *queue)[1] == "removed 0 done jobs\n"
+    assert json.loads(run_cli(capsys, "queue", "show", "2", "--json", *queue)[1])["job"]["id"] == 2
+
+
+def test_default_queue_location(tmp_path, monkeypatch, capsys):
+    monkeypatch.delenv("FOLDFAB_QUEUE", raising=False)
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "data"))
+    assert run_cli(capsys, "queue", "list")[1] == f"no jobs in {tmp_path / 'data' / 'foldfab' / 'queue.sqlite3'}\n"
+    assert not (tmp_path / "data").exists()  # reading never creates the file
+    monkeypatch.setenv("FOLDFAB_QUEUE", str(tmp_path / "env.sqlite3"))
+    run_cli(capsys, "queue", "add", str(HEXAGON), "--device", "graphtec-ce6000", "--port", "sim://x")
+    assert (tmp_path / "env.sqlite3").exists()
+
+
+@pytest.mark.parametrize("content, reason", [
+    ("[profile]\npoints = [[0, 0], [5, 10]]\n", "[trajectory]: missing table"),
+    ("[profile]\npoints = [[0, 0], [5, 10]]\n[trajectory]\ntemplate = \"regular\"\ncorners = 5\nradius = 40\n",
+     "even number of corners"),
+    ("[profile]\npoints = [[0, 0], [5, 10]]\n[trajectory]\ntemplate = \"regular\"\ncorners = 6\nradius = 40\n"
+     "[fabrication]\nscale = 9\n", "largest scale that fits"),
+    ("[profile\n", "not valid TOML"),
+])
+def test_bad_job_files_are_rejected_and_nothing_is_added(tmp_path, capsys, content, reason):
+    queue = tmp_path / "q.sqlite3"
+    bad = tmp_path / "bad.toml"
+    bad.write_text(content)
+    code, out, err = run_cli(capsys, "queue", "add", str(HEXAGON), str(bad), "--device", "graphtec-ce6000",
+                             "--port", "sim://x", "--queue", str(queue))
+    assert code == 2 and out == ""
+    assert err.startswith(f"foldfab: error: {bad}") and reason in err and "\n" not in err.rstrip("\n")
+    assert SqliteQueueStore(queue).jobs() == []
+
+
+def test_add_needs_a_port_and_a_known_device(tmp_path, capsys):
+    profile = tmp_path / "noport.toml"
+    profile.write_text("\n".join(line for line in (ROOT / "devices" / "grbl.toml").read_text().splitlines()
+                                 if not line.startswith("port")))
+    code, _, err = run_cli(capsys, "queue", "add", str(HEXAGON), "--device", str(profile),
+                           "--queue", str(tmp_path / "q.sqlite3"))
+    assert code == 2 and "has no port: give --port PORT" in err
+    code, _, err = run_cli(capsys, "queue", "add", str(HEXAGON), "--device", "nonesuch",
+                           "--queue", str(tmp_path / "q.sqlite3"))
+    assert code == 2 and "unknown device 'nonesuch'" in err
+    assert not (tmp_path / "q.sqlite3").exists()
+
+
+def test_snapshot_does_not_change_when_the_job_and_its_svg_change(tmp_path, capsys):
+    folder = tmp_path / "jobs"
+    folder.mkdir()
+    shutil.copy(ROOT / "jobs" / "vase-profile.svg", folder)
+    job = folder / "vase.toml"
+    job.write_text((ROOT / "jobs" / "vase-svg.toml").read_text() + "\n[fabrication]\nsheet = \"A3\"\nscale = 0.5\n")
+    queue = tmp_path / "q.sqlite3"
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    os.chdir(elsewhere)  # relative SVG paths resolve against the job file, not the working folder
+    try:
+        assert run_cli(capsys, "queue", "add", str(job), "--device", "hp7475a", "--port", "sim://hp7475a",
+                       "--queue", str(queue))[0] == 0
+    finally:
+        os.chdir(ROOT)
+    store = SqliteQueueStore(queue)
+    before = store.snapshot(1)
+    job.write_text(job.read_text().replace("corners = 8", "corners = 10").replace("scale = 0.5", "scale = 0.4"))
+    (folder / "vase-profile.svg").unlink()
+    after = store.snapshot(1)
+    assert after == before
+    assert "corners = 8" in after.job_text and after.program.text.startswith("IN;")
+    assert len(after.program.sections) >= 3
