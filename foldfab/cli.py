@@ -186,6 +186,197 @@ def _add_fabrication_args(parser: argparse.ArgumentParser, output_help: str) -> 
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
 
 
+# --- foldfab queue ---------------------------------------------------------------------------
+
+
+def _queue_store(args: argparse.Namespace):
+    from foldfab.queue import SqliteQueueStore, default_queue_path
+
+    return SqliteQueueStore(args.queue or default_queue_path(), wait=args.wait)
+
+
+def _when(seconds: float) -> str:
+    import time
+
+    return time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(seconds))
+
+
+def cmd_queue_add(args: argparse.Namespace) -> int:
+    """Build every job now (a bad job fails here, nothing is added) and queue the snapshots."""
+    from foldfab.errors import FoldfabError
+    from foldfab.queue import NewJob, make_snapshot
+
+    new = []
+    for job in args.jobs:
+        design, device, fab = _fabricate(argparse.Namespace(job=job, device=args.device,
+                                                            allow_penetration=args.allow_penetration))
+        port = args.port or device.port
+        if not port:
+            raise FoldfabError(f"{device.name} has no port: give --port PORT (a serial port such as /dev/ttyUSB0, "
+                               f"or a simulated plotter such as sim://{device.name}), or set port in {device.source}")
+        snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
+        new.append(NewJob(snapshot, port, args.priority, args.copies))
+    store = _queue_store(args)
+    ids = iter(store.add(new))
+    for item in new:
+        numbers = [next(ids) for _ in range(item.copies)]
+        label = f"job {numbers[0]}" if len(numbers) == 1 else f"jobs {numbers[0]}-{numbers[-1]}"
+        print(f"queued {label}: {item.snapshot.name} on {item.snapshot.device} at {item.port}, "
+              f"{len(item.snapshot.program.text)} bytes, priority {item.priority} ({store.location})")
+    return 0
+
+
+def format_job_line(job) -> str:
+    """One row of ``foldfab queue list``."""
+    name = job.name if job.copies == 1 else f"{job.name} ({job.copy}/{job.copies})"
+    state = job.state + ("*" if job.cancel_requested else "")
+    return (f"{job.id:>5} {state:<12} {job.priority:>4} {job.device:<18} {job.port:<22} "
+            f"{job.percent:>5.1f}%  {name}")
+
+
+def cmd_queue_list(args: argparse.Namespace) -> int:
+    """List jobs in the queue, oldest first."""
+    store = _queue_store(args)
+    jobs = store.jobs(args.state)
+    if args.json:
+        print(json.dumps([job.as_dict() for job in jobs], indent=1))
+    elif not jobs:
+        print(f"no {args.state + ' ' if args.state else ''}jobs in {store.location}")
+    else:
+        lines = [f"{'ID':>5} {'STATE':<12} {'PRI':>4} {'DEVICE':<18} {'PORT':<22} {'DONE':>6}  NAME"]
+        lines.extend(format_job_line(job) for job in jobs)
+        if any(job.cancel_requested for job in jobs):
+            lines.append("* cancel requested: the worker stops the plotter")
+        print("\n".join(lines))
+    return 0
+
+
+def format_job(job, events) -> str:
+    """``foldfab queue show``: the job and its event log."""
+    copy = f" (copy {job.copy} of {job.copies})" if job.copies > 1 else ""
+    lines = [f"job {job.id}    {job.name}{copy}",
+             f"state        {job.state}" + (" (cancel requested)" if job.cancel_requested else "")
+             + (f": {job.reason}" if job.reason else ""),
+             f"device       {job.device} at {job.port}",
+             f"priority     {job.priority}",
+             f"job file     {job.job_path} (as it was when queued)",
+             f"progress     {job.acked_bytes} of {job.program_bytes} bytes acknowledged ({job.percent:.1f}%)"
+             + (f", {job.progress}" if job.progress else ""),
+             f"attempts     {job.attempts}"]
+    if job.worker:
+        lines.append(f"worker       {job.worker}, lease until {_when(job.lease_expires)}")
+    lines.append("events")
+    lines.extend(f"  {_when(e.time)}  {e.kind:<11} {e.message}" for e in events)
+    return "\n".join(lines)
+
+
+def cmd_queue_show(args: argparse.Namespace) -> int:
+    """Show one job with its event log."""
+    store = _queue_store(args)
+    job, events = store.job(args.id), store.events(args.id)
+    if args.json:
+        print(json.dumps({"job": job.as_dict(), "events": [e.__dict__ for e in events]}, indent=1))
+    else:
+        print(format_job(job, events))
+    return 0
+
+
+def cmd_queue_cancel(args: argparse.Namespace) -> int:
+    """Cancel a job; a running one is stopped safely by its worker."""
+    job = _queue_store(args).cancel(args.id)
+    print(f"job {job.id}: cancel requested; worker {job.worker} stops the plotter (pen up, parked)"
+          if job.cancel_requested else f"job {job.id} cancelled")
+    return 0
+
+
+def cmd_queue_retry(args: argparse.Namespace) -> int:
+    """Queue a failed, cancelled or interrupted job again."""
+    job = _queue_store(args).retry(args.id, restart=args.restart)
+    where = (f"resumes at byte {job.acked_bytes} of {job.program_bytes} (--restart: from the start, new sheet)"
+             if job.acked_bytes else "runs from the start")
+    print(f"job {job.id} queued again: {where}")
+    return 0
+
+
+def cmd_queue_continue(args: argparse.Namespace) -> int:
+    """The operator has acted at the pause (flipped the sheet): let the worker go on."""
+    job = _queue_store(args).continue_job(args.id, "foldfab queue continue")
+    print(f"job {job.id} continues on worker {job.worker}")
+    return 0
+
+
+def cmd_queue_remove(args: argparse.Namespace) -> int:
+    """Delete a job and its log."""
+    _queue_store(args).remove(args.id)
+    print(f"job {args.id} removed")
+    return 0
+
+
+def cmd_queue_clear(args: argparse.Namespace) -> int:
+    """Delete finished jobs."""
+    count = _queue_store(args).clear(["done"])
+    print(f"removed {count} done job{'s' if count != 1 else ''}")
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected 1 or more, got {value}")
+    return value
+
+
+def _add_queue_parser(sub) -> None:
+    """``foldfab queue ...``: the persistent job queue."""
+    from foldfab.queue import DEFAULT_WAIT, STATES
+
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--queue", metavar="PATH", help="queue file (default: $FOLDFAB_QUEUE, else "
+                        "$XDG_DATA_HOME/foldfab/queue.sqlite3, default ~/.local/share)")
+    common.add_argument("--wait", type=float, default=DEFAULT_WAIT, metavar="SECONDS",
+                        help=f"how long to wait while another foldfab writes the queue (default {DEFAULT_WAIT:g})")
+    queue = sub.add_parser("queue", help="a persistent job queue for one or several plotters",
+                           description="Line up sheets and let workers plot them; survives crashes and "
+                                       "pulled cables without losing or duplicating a sheet.")
+    commands = queue.add_subparsers(dest="queue_command", metavar="ACTION", required=True)
+
+    add = commands.add_parser("add", parents=[common], help="build jobs now and queue them",
+                              description="Build each job's program now (a bad job is an error here and nothing "
+                                          "is added) and queue a snapshot: later edits of the files change nothing.")
+    add.add_argument("jobs", nargs="+", metavar="JOB.toml", help="job files")
+    add.add_argument("--device", required=True, metavar="NAME", help="device profile (name or .toml path)")
+    add.add_argument("--port", metavar="PORT", help="serial port or pyserial URL (default: the profile's port)")
+    add.add_argument("--copies", type=_positive_int, default=1, metavar="N", help="sheets of each job (default 1)")
+    add.add_argument("--priority", type=int, default=0, metavar="P", help="higher runs first (default 0)")
+    add.add_argument("--allow-penetration", action="store_true", help="queue a design whose faces intersect")
+    add.set_defaults(func=cmd_queue_add)
+
+    listing = commands.add_parser("list", parents=[common], help="list jobs")
+    listing.add_argument("--state", choices=STATES, help="only jobs in this state")
+    listing.add_argument("--json", action="store_true", help="print JSON")
+    listing.set_defaults(func=cmd_queue_list)
+
+    show = commands.add_parser("show", parents=[common], help="one job and its event log")
+    show.add_argument("id", type=int, metavar="ID")
+    show.add_argument("--json", action="store_true", help="print JSON")
+    show.set_defaults(func=cmd_queue_show)
+
+    for name, func, text in (("cancel", cmd_queue_cancel, "cancel a job (a running one stops safely)"),
+                             ("retry", cmd_queue_retry, "queue a failed, cancelled or interrupted job again"),
+                             ("continue", cmd_queue_continue, "go on after a pause (the sheet is flipped)"),
+                             ("remove", cmd_queue_remove, "delete a job that is not running")):
+        action = commands.add_parser(name, parents=[common], help=text)
+        action.add_argument("id", type=int, metavar="ID")
+        action.set_defaults(func=func)
+        if name == "retry":
+            action.add_argument("--restart", action="store_true",
+                                help="from the start on a new sheet, not from the last acknowledged stroke")
+
+    clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
+    clear.add_argument("--done", action="store_true", required=True, help="delete every done job")
+    clear.set_defaults(func=cmd_queue_clear)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
     from foldfab import __version__
@@ -219,6 +410,7 @@ def build_parser() -> argparse.ArgumentParser:
                                          "sheet, plottable area, pauses, and the time estimate.")
     _add_fabrication_args(preview, "preview SVG file")
     preview.set_defaults(func=cmd_preview)
+    _add_queue_parser(sub)
     return parser
 
 
