@@ -19,6 +19,7 @@ from foldfab.errors import DesignError
 from foldfab.reflection import Reflection
 
 BORDER, MOUNTAIN, VALLEY, FLAT = "B", "M", "V", "F"
+FLAT_FOLD_TOL = 1e-6  # degrees: a fold closer than this to 180 has no defined direction
 
 
 @dataclass(frozen=True)
@@ -151,6 +152,13 @@ def build_crease_pattern(grid: Reflection, flat_angle: float = 1.0, glue_tab: fl
     angle = np.zeros(len(edges))
     inner = ~border
     angle[inner] = _fold_angles(flat_normals[left[inner]], flat_normals[right[inner]], direction[inner])
+    flat_fold = inner & (np.abs(angle) > 180.0 - FLAT_FOLD_TOL)
+    if np.any(flat_fold):
+        e = int(np.argmax(flat_fold))
+        j, k = face_grid[right[e]]
+        raise DesignError(f"the paper folds flat onto itself (180 degrees) between profile segment {j} and trajectory "
+                          f"segment {k}: the folded model cannot tell mountain from valley there; tilt the profile or "
+                          "the trajectory so no mirror is perpendicular to the paper")
     assignment = np.full(len(edges), FLAT, dtype="<U1")
     folded = inner & (np.abs(angle) >= flat_angle) & (angle != 0.0)
     assignment[folded & (angle > 0)] = VALLEY

@@ -104,6 +104,13 @@ def test_straight_corners_make_no_mirror():
     assert grid.corners == 1 and grid.x.shape[1] == 3
 
 
+def test_a_fold_flat_onto_itself_is_an_error():
+    """A mirror perpendicular to the paper folds it 180 degrees: the model cannot tell M from V."""
+    rising = np.array([[0, 0, 0], [10, 0, 0], [20, 0, 5]], float)
+    with pytest.raises(DesignError, match="folds flat onto itself"):
+        build_crease_pattern(reflect(np.array([[0.0, 0.0], [0.0, 1.0]]), rising))
+
+
 def test_closed_3d_trajectory_that_does_not_close_is_an_error():
     skew = np.array([[0, 0, 0], [40, 0, 0], [40, 40, 10], [0, 40, 30], [0, 0, 0]], float)
     with pytest.raises(DesignError, match="closed 3D trajectory does not close|even number"):
