@@ -319,6 +319,66 @@ def cmd_queue_clear(args: argparse.Namespace) -> int:
     return 0
 
 
+class QueueConsole:
+    """The worker's terminal: job lines, the progress display of ``foldfab plot``, and pauses
+    answered with Enter (without a terminal: ``foldfab queue continue ID``)."""
+
+    def __init__(self, as_json: bool = False):
+        from foldfab.progress import reporter
+
+        self.report = reporter(sys.stdout, as_json)
+        self.terminal = sys.stdin.isatty()
+
+    def job_started(self, job, note: str) -> None:
+        print(f"job {job.id}: {job.name} on {job.device} at {job.port}: {note}", flush=True)
+
+    def progress(self, event) -> None:
+        self.report(event)
+
+    def paused(self, job, message: str) -> None:
+        how = ("press Enter to continue, or type c and Enter to cancel the job" if self.terminal
+               else f"when done, run: foldfab queue continue {job.id}")
+        print(f"job {job.id} waits: {message}\n{how}", flush=True)
+
+    def answer(self, timeout: float) -> str | None:
+        import select
+        import time
+
+        if not self.terminal:
+            time.sleep(timeout)
+            return None
+        if not select.select([sys.stdin], [], [], timeout)[0]:
+            return None
+        line = sys.stdin.readline()
+        if not line:  # end of input: from now on only foldfab queue continue answers
+            self.terminal = False
+            return None
+        return "cancel" if line.strip().lower() in ("c", "cancel") else "continue"
+
+    def job_ended(self, job, state: str, message: str) -> None:
+        print(f"job {job.id} {state}: {message}", flush=True)
+
+
+def cmd_queue_run(args: argparse.Namespace) -> int:
+    """Plot queued jobs (or rehearse them on simulated plotters with --dry-run)."""
+    from foldfab.errors import FoldfabError
+    from foldfab.worker import Worker, WorkerOptions, rehearse
+
+    options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
+    store, console = _queue_store(args), QueueConsole(args.json)
+    summary = rehearse(store, console, options) if args.dry_run else Worker(store, console, options).run()
+    if not summary.ended:
+        print(f"nothing to run in {store.location}" + (" for these filters" if args.device or args.port else ""))
+        return 0
+    print("; ".join(f"{len(ids)} {state} ({', '.join(map(str, ids))})" for state, ids in summary.ended.items()))
+    trouble = {state: ids for state, ids in summary.ended.items() if state not in ("done", "cancelled")}
+    if trouble:
+        raise FoldfabError(", ".join(f"{len(ids)} job(s) {state}" for state, ids in trouble.items())
+                           + ": see foldfab queue show ID for the reason" + ("" if args.dry_run else
+                                                                              "; foldfab queue retry ID"))
+    return 0
+
+
 def _positive_int(text: str) -> int:
     value = int(text)
     if value < 1:
@@ -328,7 +388,7 @@ def _positive_int(text: str) -> int:
 
 def _add_queue_parser(sub) -> None:
     """``foldfab queue ...``: the persistent job queue."""
-    from foldfab.queue import DEFAULT_WAIT, STATES
+    from foldfab.queue import DEFAULT_LEASE, DEFAULT_WAIT, STATES
 
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--queue", metavar="PATH", help="queue file (default: $FOLDFAB_QUEUE, else "
@@ -375,6 +435,27 @@ def _add_queue_parser(sub) -> None:
     clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
     clear.add_argument("--done", action="store_true", required=True, help="delete every done job")
     clear.set_defaults(func=cmd_queue_clear)
+
+    run = commands.add_parser("run", parents=[common], help="plot queued jobs (a worker)",
+                              description="Plot jobs in priority and arrival order, one at a time, with the "
+                                          "progress display of foldfab plot.  Run one worker per plotter (or "
+                                          "several on one queue: they never run the same job).  A job whose "
+                                          "worker died is resumed from its last acknowledged stroke.")
+    run.add_argument("--device", metavar="NAME", help="only jobs for this device profile")
+    run.add_argument("--port", metavar="PORT", help="only jobs for this port")
+    modes = run.add_mutually_exclusive_group()
+    modes.add_argument("--until-empty", dest="mode", action="store_const", const="until-empty",
+                       help="stop when no job is runnable (the default)")
+    modes.add_argument("--once", dest="mode", action="store_const", const="once", help="run one job at most")
+    modes.add_argument("--follow", dest="mode", action="store_const", const="follow",
+                       help="keep running, waiting for new jobs")
+    run.set_defaults(mode="until-empty")
+    run.add_argument("--dry-run", action="store_true",
+                     help="stream every runnable job to a simulated plotter of its device; the queue is not changed")
+    run.add_argument("--lease", type=float, default=DEFAULT_LEASE, metavar="SECONDS",
+                     help=f"a job whose worker is silent this long is interrupted (default {DEFAULT_LEASE:g})")
+    run.add_argument("--json", action="store_true", help="progress as JSON lines")
+    run.set_defaults(func=cmd_queue_run)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -248,7 +248,8 @@ class QueueStore(Protocol):
         """Queue a failed, cancelled or interrupted job again (``restart``: from byte 0, a new sheet)."""
 
     def continue_job(self, job_id: int, source: str) -> JobRecord:
-        """The operator acted at the pause (``source`` says where): ``waiting`` -> ``running``."""
+        """The operator acted at the pause (``source`` says where): ``waiting`` -> ``running``.
+        The worker records the pauses confirmed (``pauses_done``) once it goes on."""
 
     def remove(self, job_id: int) -> None:
         """Delete a job that no worker holds, with its log."""
@@ -256,15 +257,16 @@ class QueueStore(Protocol):
     def clear(self, states: Sequence[str]) -> int:
         """Delete every job in ``states``; how many."""
 
-    def claim(self, worker: WorkerId, lease: float, device: str | None = None,
-              port: str | None = None) -> Claim | None:
-        """Atomically take the next runnable job (for ``device``/``port`` if given), or None."""
+    def claim(self, worker: WorkerId, lease: float, device: str | None = None, port: str | None = None,
+              exclude: Sequence[int] = ()) -> Claim | None:
+        """Atomically take the next runnable job (for ``device``/``port`` if given, not in ``exclude``)."""
 
-    def runnable(self, device: str | None = None, port: str | None = None) -> list[JobRecord]:
+    def runnable(self, device: str | None = None, port: str | None = None,
+                 exclude: Sequence[int] = ()) -> list[JobRecord]:
         """Jobs a claim would take, in claim order (without claiming them)."""
 
     def heartbeat(self, job_id: int, worker: WorkerId, lease: float, acked_bytes: int | None = None,
-                  progress: str | None = None) -> Control:
+                  progress: str | None = None, pauses_done: int | None = None) -> Control:
         """Renew the lease, persist progress, read cancel/continue requests."""
 
     def log(self, job_id: int, kind: str, message: str) -> None:
@@ -274,7 +276,8 @@ class QueueStore(Protocol):
         """``running`` -> ``waiting`` at a pause; log the operator's instruction."""
 
     def finish(self, job_id: int, worker: WorkerId, state: str, message: str,
-               acked_bytes: int | None = None) -> bool:
+               acked_bytes: int | None = None, pauses_done: int | None = None,
+               progress: str | None = None) -> bool:
         """End the worker's hold: ``done``, ``failed``, ``cancelled`` or ``interrupted``; False if it was lost."""
 
     def close(self) -> None:
@@ -358,6 +361,7 @@ _CLAIM_ORDER = "ORDER BY j.state = 'interrupted' DESC, j.priority DESC, j.id"
 _RUNNABLE = f"""{_SELECT_JOBS}
     WHERE j.state IN ('queued', 'interrupted')
       AND (:device IS NULL OR s.device = :device) AND (:port IS NULL OR j.port = :port)
+      AND j.id NOT IN (SELECT value FROM json_each(:exclude))
       AND NOT EXISTS (SELECT 1 FROM jobs o WHERE o.port = j.port AND o.id <> j.id
                       AND (o.state IN ('running', 'waiting')
                            OR (o.state = 'interrupted' AND j.state <> 'interrupted')))
@@ -486,7 +490,7 @@ class SqliteQueueStore:
                 raise
 
     def _params(self, **values) -> dict:
-        return {"now": time.time(), "host": self._host, "device": None, "port": None} | values
+        return {"now": time.time(), "host": self._host, "device": None, "port": None, "exclude": "[]"} | values
 
     def close(self) -> None:
         """Close the connection (the file stays)."""
@@ -626,7 +630,7 @@ class SqliteQueueStore:
             job = self._get(db, job_id)
             if job.state != "waiting":
                 raise FoldfabError(f"job {job_id} is {job.state}, not waiting at a pause; nothing to continue")
-            self._set(db, job_id, state="running", pauses_done=job.pauses_done + 1)
+            self._set(db, job_id, state="running")
             self._event(db, job_id, "continued", f"the operator continued ({source})")
             return self._get(db, job_id)
 
@@ -655,18 +659,21 @@ class SqliteQueueStore:
 
     # -- worker side
 
-    def runnable(self, device: str | None = None, port: str | None = None) -> list[JobRecord]:
+    def runnable(self, device: str | None = None, port: str | None = None,
+                 exclude: Sequence[int] = ()) -> list[JobRecord]:
         if not self.path.exists():
             return []
         with self._read() as db:
-            rows = db.execute(_RUNNABLE, self._params(device=device, port=port)).fetchall()
+            rows = db.execute(_RUNNABLE, self._params(device=device, port=port,
+                                                      exclude=json.dumps(list(exclude)))).fetchall()
         return [_record(row) for row in rows]
 
-    def claim(self, worker: WorkerId, lease: float, device: str | None = None,
-              port: str | None = None) -> Claim | None:
+    def claim(self, worker: WorkerId, lease: float, device: str | None = None, port: str | None = None,
+              exclude: Sequence[int] = ()) -> Claim | None:
+        params = self._params(device=device, port=port, exclude=json.dumps(list(exclude)))
         while True:
             with self._write() as db:
-                row = db.execute(f"{_RUNNABLE} LIMIT 1", self._params(device=device, port=port)).fetchone()
+                row = db.execute(f"{_RUNNABLE} LIMIT 1", params | {"now": time.time()}).fetchone()
                 if row is None:
                     return None
                 job = _record(row)
@@ -682,17 +689,13 @@ class SqliteQueueStore:
                 self.finish(job.id, worker, "failed", str(exc))
 
     def heartbeat(self, job_id: int, worker: WorkerId, lease: float, acked_bytes: int | None = None,
-                  progress: str | None = None) -> Control:
+                  progress: str | None = None, pauses_done: int | None = None) -> Control:
         with self._write() as db:
             owned = self._owned(db, job_id, worker)
             if owned is None:
                 return Control("lost", False, True)
-            values: dict = {"lease_expires": time.time() + lease}
-            if acked_bytes is not None:
-                values["acked_bytes"] = acked_bytes
-            if progress is not None:
-                values["progress"] = progress
-            self._set(db, job_id, **values)
+            values = _given(acked_bytes=acked_bytes, progress=progress, pauses_done=pauses_done)
+            self._set(db, job_id, lease_expires=time.time() + lease, **values)
             return Control(*owned, False)
 
     def log(self, job_id: int, kind: str, message: str) -> None:
@@ -709,18 +712,24 @@ class SqliteQueueStore:
             return Control("waiting", owned[1], False)
 
     def finish(self, job_id: int, worker: WorkerId, state: str, message: str,
-               acked_bytes: int | None = None) -> bool:
+               acked_bytes: int | None = None, pauses_done: int | None = None,
+               progress: str | None = None) -> bool:
         if state not in ("done", "failed", "cancelled", "interrupted"):
             raise ValueError(f"a job cannot finish as {state!r}")
         with self._write() as db:
             if self._owned(db, job_id, worker) is None:
                 return False
-            values: dict = {"acked_bytes": acked_bytes} if acked_bytes is not None else {}
+            values = _given(acked_bytes=acked_bytes, pauses_done=pauses_done, progress=progress)
             self._set(db, job_id, state=state, worker=None, lease_expires=None, worker_host=None,
                       worker_pid=None, cancel_requested=0, reason=None if state == "done" else message,
                       **values)
             self._event(db, job_id, state, message)
             return True
+
+
+def _given(**values) -> dict:
+    """The values that are not None."""
+    return {key: value for key, value in values.items() if value is not None}
 
 
 def _record(row: tuple) -> JobRecord:

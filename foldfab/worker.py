@@ -1,0 +1,391 @@
+"""The queue worker: claim a job, plot it through the streaming engine, keep the queue true.
+
+:class:`Worker` takes jobs from a :class:`~foldfab.queue.QueueStore` in claim order and
+plots each one with a :data:`Runner` (by default :func:`stream_runner`: the port is
+opened and :func:`foldfab.stream.stream` sends the program).  While a job runs, a
+heartbeat thread renews the worker's lease and persists the acknowledged position
+whenever a stroke has been completed, at least every ``heartbeat`` seconds; it also
+picks up cancel requests (the engine then stops the plotter safely) and notices when
+the job is no longer this worker's (the plotter is stopped at once).
+
+A job that was interrupted before (its worker died, the cable was pulled) is resumed
+with :func:`foldfab.resume.resume_program` from the first stroke not acknowledged: no
+stroke is lost, only the interrupted one can be drawn twice.  Pauses (the flip of a
+two-sided job) set the job ``waiting``; the :class:`WorkerUI` may answer on a terminal,
+and ``foldfab queue continue ID`` answers from anywhere.
+
+How a job ends: the engine finished -> ``done``; the queue's cancel (or the operator at
+the worker's terminal) -> ``cancelled``; the port could not be opened, the link or the
+plotter was lost (the tool could not be lifted) or Ctrl-C on the worker ->
+``interrupted``; the plotter reported an error or stalled (the tool was lifted), or the
+job cannot start (its stored device profile no longer loads) -> ``failed``.
+A worker does not resume a job it saw interrupted itself until ``retry_after`` seconds
+have passed (``--follow``), or not at all in this run (``--until-empty``, ``--once``):
+someone has to plug the cable back in.
+"""
+
+from __future__ import annotations
+
+import bisect
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Callable, Protocol
+
+from foldfab.errors import FoldfabError
+from foldfab.queue import DEFAULT_LEASE, Claim, JobRecord, QueueStore, WorkerId, load_snapshot_device
+
+if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
+    from foldfab.progress import ProgressEvent
+    from foldfab.program import Program
+    from foldfab.stream import StreamStopped
+
+MODES = ("until-empty", "once", "follow")
+DRY_RUN_PORT = "sim://?time=instant"
+"""``--dry-run``: the simulated plotter of the job's device, as fast as it can go."""
+
+
+class Runner(Protocol):
+    """Plots ``program`` on ``port``; returns when it is done, raises
+    :class:`foldfab.stream.StreamStopped` when it stopped early."""
+
+    def __call__(self, program: Program, device: DeviceProfile, port: str, *,
+                 events: Callable[[ProgressEvent], None], cancel: threading.Event,
+                 operator: Callable[[str], bool]) -> None: ...
+
+
+def stream_runner(program: Program, device: DeviceProfile, port: str, *,
+                  events: Callable[[ProgressEvent], None], cancel: threading.Event,
+                  operator: Callable[[str], bool]) -> None:
+    """Open ``port`` with the device's serial settings and stream ``program`` to it."""
+    from foldfab.stream import stream
+    from foldfab.transport import open_port
+
+    link = open_port(port, device)
+    try:
+        stream(link, program, device, events=events, cancel=cancel, operator=operator)
+    finally:
+        link.close()
+
+
+class WorkerUI(Protocol):
+    """What the worker shows and asks; the command line implements it on a terminal."""
+
+    def job_started(self, job: JobRecord, note: str) -> None:
+        """A job begins (``note``: started, or where it resumes)."""
+
+    def progress(self, event: ProgressEvent) -> None:
+        """The engine's progress events."""
+
+    def paused(self, job: JobRecord, message: str) -> None:
+        """The job waits for the operator at a pause."""
+
+    def answer(self, timeout: float) -> str | None:
+        """The operator's answer within ``timeout`` s: "continue", "cancel", or None (none yet, or no terminal)."""
+
+    def job_ended(self, job: JobRecord, state: str, message: str) -> None:
+        """A job left this worker in ``state``."""
+
+
+@dataclass(frozen=True)
+class WorkerOptions:
+    """How ``foldfab queue run`` works."""
+
+    device: str | None = None
+    """Only jobs for this device profile."""
+    port: str | None = None
+    """Only jobs for this port."""
+    mode: str = "until-empty"
+    """until-empty: stop when nothing is runnable; once: one job at most; follow: wait for jobs."""
+    lease: float = DEFAULT_LEASE
+    """Seconds a job stays this worker's without a heartbeat."""
+    heartbeat: float = 1.0
+    """Longest time between two heartbeats (progress is also saved when a stroke is done)."""
+    poll: float = 2.0
+    """follow: seconds between looks at an empty queue; also how often a pause checks the queue."""
+    retry_after: float = 60.0
+    """follow: seconds before this worker resumes a job it saw interrupted."""
+
+
+@dataclass
+class WorkerSummary:
+    """Jobs this worker ended, by state."""
+
+    ended: dict[str, list[int]] = field(default_factory=dict)
+
+    def add(self, job_id: int, state: str) -> None:
+        self.ended.setdefault(state, []).append(job_id)
+
+
+@dataclass(frozen=True)
+class StartPoint:
+    """What to stream for a job: the whole program, or a resume program and how its byte
+    offsets and pauses map back to the stored program."""
+
+    program: Program | None
+    """None: every stroke was drawn before the interruption."""
+    note: str
+    confirmed: tuple[int, ...]
+    cut: int = 0
+    """Offset in the stored program where the streamed text continues it."""
+    prelude: int = 0
+    """Bytes of the streamed program before that point (tool state, travel)."""
+    stroke: int = 0
+    """Strokes of the stored program already drawn."""
+    """For each pause of the streamed program: stored pauses confirmed once it is answered."""
+
+    def original(self, offset: int) -> int:
+        """Stored-program offset of streamed-program byte ``offset``."""
+        return self.cut + max(offset - self.prelude, 0)
+
+
+def start_point(program: Program, device: DeviceProfile, acked: int, pauses_done: int) -> StartPoint:
+    """Where a job starts: from the beginning, or from the first stroke not acknowledged."""
+    if not acked:
+        return StartPoint(program, "started", tuple(range(1, len(program.pauses) + 1)))
+    from foldfab.interpret import interpret
+    from foldfab.resume import resume_program
+
+    strokes = interpret(program, device).strokes
+    stroke = bisect.bisect_right([s.end for s in strokes], acked)
+    if stroke >= len(strokes):
+        return StartPoint(None, f"all {len(strokes)} strokes were drawn before the interruption", (), stroke=stroke)
+    resumed = resume_program(program, device, stroke, pauses_done)
+    cut = strokes[stroke].offset
+    prelude = len(resumed.text) - (len(program.text) - cut)
+    originals = [p.offset for p in program.pauses]
+    counts = tuple(bisect.bisect_right(originals, cut + max(p.offset - prelude, 0)) for p in resumed.pauses)
+    return StartPoint(resumed, f"resumed at stroke {stroke + 1} of {len(strokes)} (byte {cut})", counts,
+                      cut, prelude, stroke)
+
+
+class _Heartbeat(threading.Thread):
+    """Renews the lease and saves progress; sets ``cancel`` on a cancel request or a lost job."""
+
+    def __init__(self, store: QueueStore, worker: WorkerId, job_id: int, options: WorkerOptions,
+                 cancel: threading.Event):
+        super().__init__(name=f"foldfab-heartbeat-{job_id}", daemon=True)
+        self.store, self.worker, self.job_id, self.options, self.cancel = store, worker, job_id, options, cancel
+        self.acked: int | None = None
+        self.progress: str | None = None
+        self.pauses_done: int | None = None
+        self.cancel_requested = False
+        self.lost: str | None = None
+        self.renewed = time.monotonic()
+        self._poke = threading.Event()
+        self._stopped = threading.Event()
+
+    def poke(self) -> None:
+        """Save now (a stroke was completed, a pause answered)."""
+        self._poke.set()
+
+    def run(self) -> None:
+        while not self._stopped.is_set():
+            self._poke.wait(self.options.heartbeat)
+            self._poke.clear()
+            if not self._stopped.is_set():
+                self.beat()
+
+    def beat(self) -> None:
+        """One heartbeat; gives the job up if the lease could not be renewed in time."""
+        try:
+            control = self.store.heartbeat(self.job_id, self.worker, self.options.lease, self.acked,
+                                           self.progress, self.pauses_done)
+        except FoldfabError as exc:
+            if time.monotonic() - self.renewed > 0.8 * self.options.lease:
+                self.give_up(f"the lease could not be renewed for {self.options.lease:g} s ({exc})")
+            return
+        self.renewed = time.monotonic()
+        if control.lost:
+            self.give_up("the job is no longer this worker's (its lease expired, or it was removed)")
+        elif control.cancel_requested and not self.cancel_requested:
+            self.cancel_requested = True
+            self.cancel.set()
+
+    def give_up(self, reason: str) -> None:
+        self.lost = reason
+        self.cancel.set()
+
+    def finish(self) -> None:
+        self._stopped.set()
+        self._poke.set()
+        self.join()
+
+
+class Worker:
+    """Runs queued jobs on their plotters (see the module docstring)."""
+
+    def __init__(self, store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOptions(),
+                 runner: Runner = stream_runner):
+        if options.mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}")
+        self.store, self.ui, self.options, self.runner = store, ui, options, runner
+        self.id = WorkerId.current()
+        self.interrupted: dict[int, float] = {}  # jobs this worker saw interrupted, and when
+
+    def run(self) -> WorkerSummary:
+        """Claim and plot jobs until the mode says stop; Ctrl-C interrupts the job and stops."""
+        summary = WorkerSummary()
+        while True:
+            claim = self.store.claim(self.id, self.options.lease, self.options.device, self.options.port,
+                                     exclude=self._skipped())
+            if claim is None:
+                if self.options.mode != "follow":
+                    return summary
+                time.sleep(self.options.poll)
+                continue
+            state = self.run_job(claim)
+            summary.add(claim.job.id, state)
+            if state == "interrupted":
+                self.interrupted[claim.job.id] = time.monotonic()
+            if self.options.mode == "once":
+                return summary
+
+    def _skipped(self) -> list[int]:
+        if self.options.mode != "follow":
+            return list(self.interrupted)
+        now = time.monotonic()
+        return [job for job, when in self.interrupted.items() if now - when < self.options.retry_after]
+
+    def run_job(self, claim: Claim) -> str:
+        """Plot one claimed job to its end; return the state it ended in."""
+        job = claim.job
+        cancel = threading.Event()
+        heartbeat = _Heartbeat(self.store, self.id, job.id, self.options, cancel)
+        try:
+            device = load_snapshot_device(claim.snapshot)
+            start = start_point(claim.snapshot.program, device, job.acked_bytes, job.pauses_done)
+        except FoldfabError as exc:
+            return self._end(job, heartbeat, "failed", f"cannot start: {exc}")
+        self.ui.job_started(job, start.note)
+        if start.program is None:
+            return self._end(job, heartbeat, "done", start.note)
+        heartbeat.start()
+        tracker = _Tracker(self, job, start, heartbeat, cancel)
+        try:
+            self.runner(start.program, device, job.port, events=tracker.event, cancel=cancel,
+                        operator=tracker.pause)
+        except KeyboardInterrupt:
+            self._end(job, heartbeat, "interrupted", "the worker was stopped (Ctrl-C)", tracker.acked)
+            raise
+        except OSError as exc:  # the port could not be opened (serial.SerialException is an OSError)
+            return self._end(job, heartbeat, "interrupted", f"cannot open port {job.port}: {exc}; connect the "
+                             "plotter, then run again", tracker.acked)
+        except FoldfabError as exc:
+            from foldfab.stream import StreamStopped
+
+            if not isinstance(exc, StreamStopped):
+                return self._end(job, heartbeat, "failed", str(exc), tracker.acked)
+            acked = start.original(exc.acknowledged)
+            where = f"at byte {acked} of {job.program_bytes} ({tracker.describe()})"
+            if heartbeat.lost:
+                return self._end(job, heartbeat, "lost", f"{heartbeat.lost}; the plotter was stopped {where}",
+                                 acked)
+            if tracker.cancelled_by or heartbeat.cancel_requested:
+                who = tracker.cancelled_by or "foldfab queue cancel"
+                return self._end(job, heartbeat, "cancelled", f"cancelled ({who}): {exc}; stopped {where}", acked)
+            if exc.cancelled:  # Ctrl-C, caught by the engine, which lifted the tool
+                self._end(job, heartbeat, "interrupted", f"the worker was stopped: {exc}; {where}", acked)
+                raise KeyboardInterrupt from None
+            return self._end(job, heartbeat, stopped_state(exc), f"{exc}; stopped {where}", acked)
+        return self._end(job, heartbeat, "done", f"finished ({tracker.describe()}; {start.note})",
+                         job.program_bytes)
+
+    def _end(self, job: JobRecord, heartbeat: _Heartbeat, state: str, message: str,
+             acked: int | None = None) -> str:
+        """Stop the heartbeat, record the end in the queue, tell the UI."""
+        if heartbeat.is_alive():
+            heartbeat.finish()
+        if state != "lost" and not self.store.finish(job.id, self.id, state, message, acked, heartbeat.pauses_done,
+                                                     heartbeat.progress):
+            state, message = "lost", f"{message}; but the job was no longer this worker's, so the queue keeps " \
+                                     "what the next writer decided"
+        self.ui.job_ended(job, state, message)
+        return state
+
+
+def stopped_state(stop: StreamStopped) -> str:
+    """The state of a job the engine stopped by itself: ``interrupted`` if the plotter could not
+    be reached to lift the tool (link lost), ``failed`` if it could (it reported a problem)."""
+    return "failed" if stop.lifted else "interrupted"
+
+
+def rehearse(store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOptions(),
+             runner: Runner = stream_runner) -> WorkerSummary:
+    """``--dry-run``: every runnable job, in claim order, streamed to a simulated plotter of its
+    device (resumed where a run would resume it; pauses answered at once).  The queue is not changed."""
+    from foldfab.stream import StreamStopped
+
+    summary = WorkerSummary()
+    for job in store.runnable(options.device, options.port):
+        snapshot = store.snapshot(job.id)
+        device = load_snapshot_device(snapshot)
+        start = start_point(snapshot.program, device, job.acked_bytes, job.pauses_done)
+        ui.job_started(job, f"dry run on {DRY_RUN_PORT} instead of {job.port}: {start.note}")
+        state, message = "done", "the simulated plotter finished it"
+        if start.program is not None:
+            try:
+                runner(start.program, device, DRY_RUN_PORT, events=ui.progress, cancel=threading.Event(),
+                       operator=lambda text: ui.paused(job, f"{text} (answered by the dry run)") or True)
+            except StreamStopped as exc:
+                state, message = stopped_state(exc), str(exc)
+        ui.job_ended(job, state, message)
+        summary.add(job.id, state)
+    return summary
+
+
+class _Tracker:
+    """The engine's callbacks for one job: progress into the heartbeat, pauses into the queue."""
+
+    def __init__(self, worker: Worker, job: JobRecord, start: StartPoint, heartbeat: _Heartbeat,
+                 cancel: threading.Event):
+        self.worker, self.job, self.start, self.heartbeat, self.cancel = worker, job, start, heartbeat, cancel
+        self.acked: int | None = None
+        self.done = self.total = start.stroke
+        self.pauses_seen = 0
+        self.cancelled_by: str | None = None
+
+    def describe(self) -> str:
+        """Strokes done, in the stored program's numbering."""
+        return f"{self.done} of {self.total} strokes done"
+
+    def event(self, event: ProgressEvent) -> None:
+        """Record the position; save at once when a stroke was completed."""
+        self.acked = self.start.original(event.acknowledged)
+        done, self.total = self.start.stroke + event.strokes_done, self.start.stroke + event.strokes_total
+        self.heartbeat.acked = self.acked
+        self.heartbeat.progress = f"stroke {done} of {self.total} done, {event.layer}"
+        if done != self.done:
+            self.done = done
+            self.heartbeat.poke()
+        self.worker.ui.progress(event)
+
+    def pause(self, message: str) -> bool:
+        """The engine is at a pause: wait in state ``waiting`` for an answer."""
+        store, worker, options = self.worker.store, self.worker.id, self.worker.options
+        confirmed = self.start.confirmed[self.pauses_seen] if self.pauses_seen < len(self.start.confirmed) else None
+        self.pauses_seen += 1
+        control = store.wait_at_pause(self.job.id, worker, message)
+        self.worker.ui.paused(self.job, message)
+        while not control.lost:
+            if control.cancel_requested:
+                self.heartbeat.cancel_requested = True
+                return False
+            if control.state == "running":  # continued: here or with foldfab queue continue
+                if confirmed is not None:
+                    self.heartbeat.pauses_done = confirmed
+                    self.heartbeat.poke()
+                return True
+            answer = self.worker.ui.answer(min(options.poll, options.heartbeat))
+            if answer == "cancel":
+                self.cancelled_by = "the operator at the worker's terminal"
+                return False
+            if answer == "continue":
+                try:
+                    store.continue_job(self.job.id, "on the worker's terminal")
+                except FoldfabError:
+                    pass  # continued or cancelled meanwhile; the heartbeat tells
+            control = store.heartbeat(self.job.id, worker, options.lease)
+        self.heartbeat.give_up("the job is no longer this worker's (its lease expired, or it was removed)")
+        return False

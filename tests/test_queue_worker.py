@@ -1,0 +1,316 @@
+"""The queue worker: order, progress, pauses, cancel, faults, resume after a dead worker."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from foldfab.cli import main
+from foldfab.design import load_design
+from foldfab.devices import load_device
+from foldfab.fabrication import fabricate, parse_fabrication
+from foldfab.interpret import interpret
+from foldfab.progress import JobProgress
+from foldfab.queue import NewJob, SqliteQueueStore, make_snapshot
+from foldfab.stream import StreamStopped
+from foldfab.worker import Worker, WorkerOptions, start_point
+
+ROOT = Path(__file__).resolve().parent.parent
+HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
+
+
+def build(device_name: str, strategy: str = "force"):
+    """A snapshot of the Figure 8 (a) hexagon for a device."""
+    device = load_device(device_name)
+    design = load_design(HEXAGON)
+    spec = parse_fabrication(dict(design.job.fabrication, strategy=strategy), str(HEXAGON))
+    return make_snapshot(HEXAGON, design.job.text, design.job.name, device, fabricate(design, device, spec).program)
+
+
+@pytest.fixture(scope="module")
+def snapshots():
+    return {(name, strategy): build(name, strategy)
+            for name in ("graphtec-ce6000", "grbl") for strategy in ("force", "two-sided")}
+
+
+@pytest.fixture()
+def store(tmp_path):
+    store = SqliteQueueStore(tmp_path / "queue.sqlite3", wait=5.0)
+    yield store
+    store.close()
+
+
+def points(stroke) -> tuple:
+    return tuple(tuple(round(c, 6) for c in p) for p in stroke.points)
+
+
+class Console:
+    """A worker UI for tests: records what it is shown; answers pauses from a script
+    (None: no terminal, like a worker started by a service manager)."""
+
+    def __init__(self, answers: list[str] | None = None):
+        self.answers = answers
+        self.lines: list[str] = []
+        self.events = 0
+
+    def job_started(self, job, note):
+        self.lines.append(f"start {job.id} {note}")
+
+    def progress(self, event):
+        self.events += 1
+
+    def paused(self, job, message):
+        self.lines.append(f"pause {job.id} {message}")
+
+    def answer(self, timeout):
+        if self.answers:
+            return self.answers.pop(0)
+        time.sleep(min(timeout, 0.05))
+        return None
+
+    def job_ended(self, job, state, message):
+        self.lines.append(f"end {job.id} {state} {message}")
+
+
+class FakePlotter:
+    """A runner that 'draws' stroke by stroke (recording each stroke's points per port), reports
+    progress, asks at pauses, honours the cancel event, and fails where told."""
+
+    def __init__(self, delay: float = 0.0, fail_at: dict[int, tuple[int, bool]] | None = None):
+        self.delay = delay
+        self.fail_at = dict(fail_at or {})  # job's nth run -> (stroke index, tool lifted)
+        self.drawn: dict[str, list[tuple]] = {}
+        self.runs = 0
+        self.lock = threading.Lock()
+
+    def __call__(self, program, device, port, *, events, cancel, operator):
+        with self.lock:
+            self.runs += 1
+            run = self.runs
+        progress = JobProgress(program, device)
+        strokes = progress.strokes
+        pauses = list(program.pauses)
+        acked, asked, started = 0, 0, time.monotonic()
+
+        def stop(message, cancelled, lifted):
+            raise StreamStopped(message, acknowledged=acked, pauses_done=asked, cancelled=cancelled, lifted=lifted)
+
+        events(progress.event("start", 0, 0, 0.0))
+        for index, stroke in enumerate(strokes):
+            while asked < len(pauses) and pauses[asked].offset <= stroke.offset:
+                acked = max(acked, pauses[asked].offset)
+                events(progress.event("pause", acked, acked, time.monotonic() - started))
+                if not operator(pauses[asked].message):
+                    stop("stopped at a pause", True, True)
+                asked += 1
+            if cancel.is_set():
+                stop("stopped on request", True, True)
+            if run in self.fail_at and self.fail_at[run][0] == index:
+                stop("serial link failed: cable pulled" if not self.fail_at[run][1] else
+                     "plotter reports HP-GL error 3 (out-of-range parameters)", False, self.fail_at[run][1])
+            time.sleep(self.delay)
+            with self.lock:
+                self.drawn.setdefault(port, []).append(points(stroke))
+            acked = stroke.end
+            events(progress.event("progress", acked, acked, time.monotonic() - started))
+        events(progress.event("done", len(program.text), len(program.text), time.monotonic() - started))
+
+
+def original_strokes(snapshot) -> list[tuple]:
+    return [points(s) for s in interpret(snapshot.program, load_device(snapshot.device)).strokes]
+
+
+def in_thread(worker: Worker) -> threading.Thread:
+    thread = threading.Thread(target=worker.run, daemon=True)
+    thread.start()
+    return thread
+
+
+def wait_for(condition, timeout: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+# --- resume arithmetic -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("device", ["graphtec-ce6000", "grbl"])
+def test_start_point_maps_resumed_offsets_and_pauses_back(snapshots, device):
+    snap = snapshots[(device, "two-sided")]
+    profile = load_device(device)
+    strokes = interpret(snap.program, profile).strokes
+    flip = snap.program.pauses[0].offset
+    for k in range(1, len(strokes)):
+        acked = strokes[k - 1].end
+        done_before = sum(p.offset < acked for p in snap.program.pauses)
+        start = start_point(snap.program, profile, acked, done_before)
+        again = interpret(start.program, profile).strokes
+        assert [points(s) for s in again] == [points(s) for s in strokes[k:]]  # nothing lost, nothing twice
+        assert [start.original(s.end) for s in again] == [s.end for s in strokes[k:]]
+        assert start.stroke == k and start.note.startswith(f"resumed at stroke {k + 1} of {len(strokes)}")
+        assert len(start.program.pauses) == len(start.confirmed)
+        assert start.confirmed == ((1,) if acked < flip else ())  # answering the flip confirms pause 1
+    last = start_point(snap.program, profile, strokes[-1].end, 1)
+    assert last.program is None and "all" in last.note
+
+
+# --- running jobs --------------------------------------------------------------------------------
+
+
+def test_worker_runs_jobs_by_priority_then_arrival_and_saves_progress(store, snapshots):
+    snap = snapshots[("graphtec-ce6000", "force")]
+    store.add([NewJob(snap, "sim://a", 0, 2), NewJob(snap, "sim://a", 5)])
+    plotter, console = FakePlotter(), Console()
+    summary = Worker(store, console, WorkerOptions(), runner=plotter).run()
+    assert summary.ended == {"done": [3, 1, 2]}
+    assert [line.split()[1] for line in console.lines if line.startswith("start")] == ["3", "1", "2"]
+    assert plotter.drawn["sim://a"] == original_strokes(snap) * 3
+    for job in store.jobs():
+        assert (job.state, job.acked_bytes, job.attempts) == ("done", job.program_bytes, 1)
+        assert job.progress.startswith(f"stroke {len(original_strokes(snap))} of {len(original_strokes(snap))}")
+        assert [e.kind for e in store.events(job.id)] == ["queued", "started", "done"]
+    assert console.events > 3
+
+
+def test_once_and_filters(store, snapshots):
+    store.add([NewJob(snapshots[("graphtec-ce6000", "force")], "sim://a"),
+               NewJob(snapshots[("grbl", "force")], "sim://b", 0, 2)])
+    plotter = FakePlotter()
+    assert Worker(store, Console(), WorkerOptions(device="grbl", mode="once"), runner=plotter).run().ended == \
+        {"done": [2]}
+    assert Worker(store, Console(), WorkerOptions(port="sim://a"), runner=plotter).run().ended == {"done": [1]}
+    assert [j.state for j in store.jobs()] == ["done", "done", "queued"]
+
+
+def test_follow_waits_for_new_jobs(store, snapshots):
+    plotter = FakePlotter()
+    worker = Worker(store, Console(), WorkerOptions(mode="follow", poll=0.05), runner=plotter)
+    in_thread(worker)
+    time.sleep(0.2)
+    store.add([NewJob(snapshots[("grbl", "force")], "sim://a")])
+    wait_for(lambda: store.job(1).state == "done")
+
+
+def test_two_sided_job_waits_until_queue_continue(store, snapshots, capsys):
+    snap = snapshots[("graphtec-ce6000", "two-sided")]
+    store.add([NewJob(snap, "sim://a")])
+    console = Console()  # no terminal
+    thread = in_thread(Worker(store, console, WorkerOptions(heartbeat=0.1, poll=0.1), runner=FakePlotter()))
+    wait_for(lambda: store.job(1).state == "waiting")
+    job = store.job(1)
+    assert job.acked_bytes == snap.program.pauses[0].offset
+    assert "Flip the sheet" in [e for e in store.events(1) if e.kind == "pause"][0].message
+    time.sleep(0.3)
+    assert store.job(1).state == "waiting"  # still: nobody answered
+    assert main(["queue", "continue", "1", "--queue", str(store.path)]) == 0
+    assert "job 1 continues on worker" in capsys.readouterr().out
+    thread.join(20)
+    job = store.job(1)
+    assert (job.state, job.pauses_done) == ("done", 1)
+    kinds = [e.kind for e in store.events(1)]
+    assert kinds == ["queued", "started", "pause", "continued", "done"]
+
+
+@pytest.mark.parametrize("answer, state", [("continue", "done"), ("cancel", "cancelled")])
+def test_pause_answered_on_the_workers_terminal(store, snapshots, answer, state):
+    store.add([NewJob(snapshots[("grbl", "two-sided")], "sim://a")])
+    console = Console(answers=[answer])
+    summary = Worker(store, console, WorkerOptions(), runner=FakePlotter()).run()
+    assert summary.ended == {state: [1]}
+    assert any(line.startswith("pause 1 Valleys are scored. Flip the sheet") for line in console.lines)
+    if state == "cancelled":
+        assert "cancelled (the operator at the worker's terminal)" in store.job(1).reason
+
+
+def test_cancel_of_a_running_job_stops_the_plotter(store, snapshots):
+    snap = snapshots[("graphtec-ce6000", "force")]
+    store.add([NewJob(snap, "sim://a"), NewJob(snap, "sim://a")])
+    plotter = FakePlotter(delay=0.05)
+    thread = in_thread(Worker(store, Console(), WorkerOptions(heartbeat=0.05), runner=plotter))
+    wait_for(lambda: store.job(1).acked_bytes > 0)
+    assert main(["queue", "cancel", "1", "--queue", str(store.path)]) == 0
+    wait_for(lambda: store.job(1).state == "cancelled")
+    thread.join(20)
+    job = store.job(1)
+    assert "cancelled (foldfab queue cancel): stopped on request; stopped at byte" in job.reason
+    drawn = len(plotter.drawn["sim://a"]) - len(original_strokes(snap))  # job 2 drew everything after
+    assert 0 < drawn < len(original_strokes(snap))
+    assert store.job(2).state == "done"
+
+
+def test_disconnect_interrupts_and_the_next_run_resumes_without_losing_a_stroke(store, snapshots):
+    snap = snapshots[("grbl", "two-sided")]
+    store.add([NewJob(snap, "sim://a"), NewJob(snap, "sim://b")])
+    plotter = FakePlotter(fail_at={1: (7, False)})
+    summary = Worker(store, Console(["continue"] * 3), WorkerOptions(), runner=plotter).run()
+    assert summary.ended == {"interrupted": [1], "done": [2]}  # its own interrupted job waits for the next run
+    job = store.job(1)
+    assert "serial link failed: cable pulled; stopped at byte" in job.reason and "7 of" in job.reason
+    assert main(["queue", "show", "1", "--queue", str(store.path)]) == 0
+    summary = Worker(store, Console(["continue"] * 3), WorkerOptions(), runner=plotter).run()
+    assert summary.ended == {"done": [1]}
+    assert plotter.drawn["sim://a"] == original_strokes(snap)
+    assert "resumed at byte" in [e for e in store.events(1) if e.kind == "started"][1].message
+
+
+def test_plotter_error_fails_the_job_and_retry_resumes_it(store, snapshots, capsys):
+    snap = snapshots[("graphtec-ce6000", "force")]
+    store.add([NewJob(snap, "sim://a")])
+    plotter = FakePlotter(fail_at={1: (3, True)})
+    assert Worker(store, Console(), WorkerOptions(), runner=plotter).run().ended == {"failed": [1]}
+    assert "HP-GL error 3" in store.job(1).reason
+    assert Worker(store, Console(), WorkerOptions(), runner=plotter).run().ended == {}  # failed jobs wait for retry
+    assert main(["queue", "retry", "1", "--queue", str(store.path)]) == 0
+    assert "resumes at byte" in capsys.readouterr().out
+    assert Worker(store, Console(), WorkerOptions(), runner=plotter).run().ended == {"done": [1]}
+    assert plotter.drawn["sim://a"] == original_strokes(snap)
+
+
+def test_port_that_cannot_be_opened_interrupts_without_touching_other_plotters(store, snapshots):
+    snap = snapshots[("grbl", "force")]
+    store.add([NewJob(snap, "/dev/nonexistent-plotter", 0, 2), NewJob(snap, "sim://b")])
+    plotter = FakePlotter()
+
+    def runner(program, device, port, **kw):
+        if port.startswith("/dev/"):
+            raise FileNotFoundError(2, "No such file or directory", port)
+        plotter(program, device, port, **kw)
+
+    assert Worker(store, Console(), WorkerOptions(), runner=runner).run().ended == \
+        {"interrupted": [1], "done": [3]}
+    assert "cannot open port /dev/nonexistent-plotter" in store.job(1).reason
+    assert store.job(2).state == "queued"  # not tried: job 1 holds that plotter
+
+
+def test_worker_that_loses_its_job_stops_the_plotter(store, snapshots):
+    import sqlite3
+
+    store.add([NewJob(snapshots[("grbl", "force")], "sim://a")])
+    plotter = FakePlotter(delay=0.05)
+    console = Console()
+    thread = in_thread(Worker(store, console, WorkerOptions(heartbeat=0.05), runner=plotter))
+    wait_for(lambda: store.job(1).acked_bytes > 0)
+    with sqlite3.connect(store.path) as db:  # what another worker does after this one's lease expired
+        db.execute("UPDATE jobs SET worker = 'elsewhere/1/x' WHERE id = 1")
+    thread.join(20)
+    assert any(line.startswith("end 1 lost the job is no longer this worker's") for line in console.lines)
+    assert len(plotter.drawn["sim://a"]) < len(original_strokes(snapshots[("grbl", "force")]))
+    assert store.job(1).worker == "elsewhere/1/x"
+
+
+def test_threads_running_workers_run_every_job_exactly_once(store, snapshots):
+    snap = snapshots[("grbl", "force")]
+    store.add([NewJob(snap, f"sim://p{i}", 0, 4) for i in range(3)])
+    plotter = FakePlotter(delay=0.001)
+    threads = [in_thread(Worker(store, Console(), WorkerOptions(), runner=plotter)) for _ in range(4)]
+    for thread in threads:
+        thread.join(60)
+    assert {j.state for j in store.jobs()} == {"done"}
+    for i in range(3):
+        assert plotter.drawn[f"sim://p{i}"] == original_strokes(snap) * 4
+    assert all(j.attempts == 1 for j in store.jobs())
