@@ -421,11 +421,13 @@ class GcodeLine:
 
     raw: str
     offset: int
+    code: str
+    """The text outside comments, upper case."""
     words: list[tuple[str, float]]
-    """(letter, value) in order, comments removed."""
+    """(letter, value) in order."""
     comments: list[str]
-    unreadable: bool
-    """Some of the text (outside comments) is not a letter followed by a number."""
+    unreadable: str
+    """Text outside comments that is not a letter followed by a number ("" if none)."""
     unsupported: list[str]
     """G and M words GRBL 1.1 does not take ("G2", "M8")."""
 
@@ -444,7 +446,7 @@ def read_gcode_line(raw: str, offset: int = 0) -> GcodeLine:
     unsupported = [f"{letter}{value:g}" for letter, value in words
                    if (letter == "G" and value not in SUPPORTED_G)
                    or (letter == "M" and value not in SUPPORTED_M)]
-    return GcodeLine(raw, offset, words, comments, bool(_WORD.sub(" ", code).strip()), unsupported)
+    return GcodeLine(raw, offset, code, words, comments, _WORD.sub(" ", code).strip(), unsupported)
 
 
 class GcodeMachine(Machine):

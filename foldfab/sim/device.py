@@ -1,0 +1,437 @@
+"""Simulated plotter core: the serial wire, the receive buffer, faults, motion, statistics.
+
+Timing model
+------------
+* One virtual clock (:mod:`foldfab.sim.clock`) drives the device and the wire.  The
+  device is event driven: between the host's actions it runs its planner up to the
+  host's time (:meth:`Simulator.advance`); events are block ends and a stall's end.
+* The wire carries one byte per ``(1 start + data + parity + stop bits) / baud``
+  seconds (10 bits for 8N1).  :meth:`Simulator.transmit` delivers the host's bytes at
+  that rate from the moment the wire is free, pausing while the host's own flow
+  control (XON/XOFF, RTS/CTS) says stop; the host's ``write`` returns when its last
+  byte has arrived.  A naive one-shot write therefore arrives at wire rate while the
+  device drains at motion rate, and whatever finds the buffer full is lost.
+* The device takes bytes out of its buffer as it executes them (HPGL: one
+  instruction, or one coordinate pair, at a time, when the previous move has ended;
+  GRBL: a line at a time while its planner has room); moves, pen lifts and dwells
+  take the durations of :mod:`foldfab.sim.motion` (the estimate's model).
+* Host reads wait in virtual time until a reply exists or their timeout passes;
+  ``real``/``fast`` sleep the wall clock accordingly (never spinning), ``instant``
+  does not sleep at all.  Replies are readable when produced (their wire time is
+  not modelled).
+
+Statistics: busy = moving, lifting, dwelling; an idle interval counts as starvation
+when more bytes arrived after it, as a pause when the device was parked or held, and
+not at all after the end of a program.  See :class:`~foldfab.sim.record.SimStats`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import deque
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from foldfab.sim.clock import Clock
+from foldfab.sim.motion import Block
+from foldfab.sim.record import PauseRecord, SimStats, recording_json, recording_svg
+
+if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
+    from foldfab.interpret import Interpretation, Stroke
+    from foldfab.sim.options import SimOptions
+
+XON, XOFF = 0x11, 0x13
+INF = math.inf
+
+
+class Simulator:
+    """A simulated plotter: the protocol classes fill in parsing and replies."""
+
+    protocol: str
+    TERMINATOR = "\r"
+    RING_SLACK = 0
+    """Buffer slots that can never hold data (GRBL's ring buffer keeps one free)."""
+    SPECIAL: re.Pattern[bytes]
+    """Bytes handled the moment they arrive, never buffered (realtime, device control)."""
+    COMPLETES: re.Pattern[bytes]
+    """Bytes that may complete a command: delivered one run at a time while the device waits."""
+
+    def __init__(self, device: DeviceProfile, options: SimOptions):
+        self.device, self.options = device, options
+        self.clock = Clock(options.time, options.speedup)
+        self.sheet = options.sheet or device.sheet
+        self.frame = device.frame(self.sheet)
+        self.size = options.buffer or device.buffer.size
+        self.capacity = self.size - self.RING_SLACK
+        self.flow = options.flow or device.buffer.flow_control
+        self.high = self.size - max(16, self.size // 8)  # XOFF / CTS low at this fill
+        self.low = self.size // 2  # XON / CTS high again at or below this fill
+        self.stats = SimStats()
+        self.t = 0.0  # device time, virtual seconds
+        self.rx = bytearray()  # receive buffer
+        self.base = 0  # stream offset of rx[0] (buffered bytes only)
+        self.out = bytearray()  # replies the host has not read
+        self.planner: deque[Block] = deque()
+        self.block_end: float | None = None  # when the running head block ends
+        self.remaining: float | None = None  # of the head block, while frozen
+        self.frozen: set[str] = set()  # "stall", "hold"
+        self.deferred: list[int] = []  # special bytes that arrived during a stall
+        self.position = (0.0, 0.0)  # device units, where the last block ended
+        self.stop_requested = False  # flow control: buffer above high water
+        self.xoff = False  # the last XON/XOFF sent was XOFF
+        self.stall_until: float | None = None
+        self.stall_at = 4 * self.size if options.stall_at is None else options.stall_at
+        self.stall_done = options.stall == 0
+        self.disconnected = False
+        self.wire_free = 0.0  # when the host's next byte can start on the wire
+        self.host_flow: frozenset[str] = frozenset()  # what the host's driver obeys
+        self.swallow_flow_bytes = False  # the host's driver eats XON/XOFF (port.xonxoff)
+        self._rng = np.random.default_rng(options.seed) if options.noise else None
+        self._idle = 0.0
+        self._overrunning = False
+        serial = device.serial
+        self.configure_wire(serial.baudrate, serial.bytesize, serial.parity, serial.stopbits)
+
+    # --- host side ----------------------------------------------------------------------
+
+    def configure_wire(self, baudrate: int, bytesize: int, parity: str, stopbits: float) -> None:
+        """The host's line settings: seconds per byte on the wire."""
+        bits = 1 + bytesize + (0 if parity == "N" else 1) + stopbits
+        self.byte_time = bits / baudrate
+
+    def connect(self) -> None:
+        """The host opened the port (GRBL boards reset and greet)."""
+
+    @property
+    def cts(self) -> bool:
+        """Clear To Send as the device drives it: low when mute or, with RTS/CTS, when nearly full."""
+        return not self.options.mute and not (self.flow == "rtscts" and self.stop_requested)
+
+    def transmit(self, data: bytes, start: float, deadline: float | None = None) -> tuple[int, float]:
+        """The host sends ``data`` from virtual time ``start``: returns (bytes sent, time done).
+
+        Each byte takes the wire for ``byte_time`` once the previous one is through and
+        the host's flow control allows; sending stops early at ``deadline``, when the
+        cable is pulled, or when flow control stops it and nothing will ever resume it.
+        """
+        noisy = self._corrupt(data)
+        sent, t = 0, max(start, self.wire_free)
+        while sent < len(data) and not self.disconnected:
+            self.advance(t)
+            if self._host_stopped():
+                resumed = self.run_until(lambda: not self._host_stopped(), deadline)
+                t = max(t, self.t)
+                if not resumed:
+                    break
+                continue
+            if deadline is not None and t + self.byte_time > deadline:
+                break
+            count = self._chunk(noisy, sent, t, deadline)
+            self._arrive(data[sent:sent + count], noisy[sent:sent + count], t)
+            sent += count
+            t += count * self.byte_time
+        if sent:
+            self.wire_free = t
+        return sent, t
+
+    def take_output(self, size: int) -> bytes:
+        """Up to ``size`` reply bytes, removed from the output."""
+        data = bytes(self.out[:size])
+        del self.out[:size]
+        return data
+
+    def run_until(self, done: Callable[[], bool], deadline: float | None = None) -> bool:
+        """Run events until ``done()``; False at ``deadline`` or when nothing more can happen."""
+        while not done():
+            te = self.next_event()
+            if te == INF or (deadline is not None and te > deadline):
+                if deadline is not None and deadline > self.t:
+                    self.advance(deadline)
+                return done()
+            self.advance(te)
+        return True
+
+    def run_until_idle(self) -> None:
+        """Let the device finish everything it holds (e.g. after the host went away)."""
+        self.run_until(lambda: False)
+        self.clock.sleep_until(self.t)
+
+    @property
+    def free(self) -> int:
+        """Free receive-buffer bytes."""
+        return self.capacity - len(self.rx)
+
+    # --- recording ------------------------------------------------------------------------
+
+    @property
+    def strokes(self) -> list[Stroke]:
+        """Pen-down strokes drawn so far, in sheet mm, with their tools."""
+        return self._drawn()
+
+    def interpretation(self) -> Interpretation:
+        """What the device drew so far, as an interpreter result (for previews)."""
+        raise NotImplementedError
+
+    def to_json(self) -> str:
+        """Device, options, statistics and strokes as JSON text."""
+        return recording_json(self)
+
+    def write_json(self, path) -> None:
+        from foldfab.atomic import write_text
+
+        write_text(path, self.to_json())
+
+    def write_svg(self, path) -> None:
+        """The drawn strokes as foldfab's preview SVG."""
+        from foldfab.atomic import write_text
+
+        write_text(path, recording_svg(self))
+
+    # --- device time --------------------------------------------------------------------
+
+    def advance(self, t: float) -> None:
+        """Run the device up to virtual time ``t``."""
+        while True:
+            self._work()
+            te = self.next_event()
+            if te > t:
+                break
+            self._spend(te)
+            self._event()
+        self._spend(t)
+
+    def next_event(self) -> float:
+        """Virtual time of the device's next own event (a block or a stall ends; inf: none)."""
+        if self.stall_until is not None:
+            return self.stall_until
+        return self.block_end if self.block_end is not None else INF
+
+    def _event(self) -> None:
+        if self.stall_until is not None:
+            self.stall_until = None
+            self._thaw("stall")
+            deferred, self.deferred = self.deferred, []
+            for byte in deferred:
+                self._special(byte)
+            return
+        block = self.planner.popleft()
+        self.block_end = None
+        self._completed(block)
+        self.stats.last_activity = self.t
+        if block.done:
+            block.done()
+        if self.planner and not self.frozen:
+            self.block_end = self.t + self.planner[0].duration
+
+    def _completed(self, block: Block) -> None:
+        self.position = block.end
+
+    def _spend(self, until: float) -> None:
+        dt = until - self.t
+        if dt <= 0:
+            return
+        stats = self.stats
+        if "stall" in self.frozen:
+            stats.stalled_time += dt
+        elif self.frozen:
+            stats.paused_time += dt
+        elif self.block_end is not None:
+            stats.busy_time += dt
+        elif stats.first_byte is not None:
+            self._idle += dt
+        self.t = until
+
+    def _enqueue(self, block: Block) -> None:
+        self.planner.append(block)
+        if len(self.planner) == 1 and not self.frozen:
+            self.block_end = self.t + block.duration
+
+    def _freeze(self, reason: str) -> None:
+        if not self.frozen and self.block_end is not None:
+            self.remaining, self.block_end = self.block_end - self.t, None
+        self.frozen.add(reason)
+
+    def _thaw(self, reason: str) -> None:
+        self.frozen.discard(reason)
+        if not self.frozen and self.planner and self.block_end is None:
+            left = self.remaining if self.remaining is not None else self.planner[0].duration
+            self.block_end, self.remaining = self.t + left, None
+
+    def _clear_planner(self) -> None:
+        self.planner.clear()
+        self.block_end = self.remaining = None
+
+    def head(self) -> tuple[tuple[float, float], Block | None]:
+        """Where the head is now (device units) and the block it is executing, if any."""
+        if not self.planner:
+            return self.position, None
+        block = self.planner[0]
+        left = self.remaining if self.block_end is None else self.block_end - self.t
+        left = block.duration if left is None else left
+        done = 1.0 - left / block.duration if block.duration > 0 else 1.0
+        (x0, y0), (x1, y1) = block.start, block.end
+        return (x0 + (x1 - x0) * done, y0 + (y1 - y0) * done), block
+
+    # --- arrival ------------------------------------------------------------------------
+
+    def _host_stopped(self) -> bool:
+        return ("xonxoff" in self.host_flow and self.xoff) or \
+            ("rtscts" in self.host_flow and not self.cts)
+
+    def _chunk(self, data: bytes, i: int, t: float, deadline: float | None) -> int:
+        """How many bytes from ``data[i]`` can arrive together without anything else happening."""
+        if self._in_special() or self.SPECIAL.match(data, i):
+            return 1
+        special = self.SPECIAL.search(data, i)
+        end = special.start() if special else len(data)
+        if self._hungry():
+            completes = self.COMPLETES.search(data, i, end)
+            end = completes.end() if completes else end
+        limits = [end - i]
+        if self.free > 0:  # a full buffer loses the whole run at once
+            limits.append(self.free)
+        te = self.next_event()
+        if te < INF:
+            limits.append(int((te - t) / self.byte_time))
+        if deadline is not None:
+            limits.append(int((deadline - t) / self.byte_time))
+        if self.flow in ("xonxoff", "rtscts") and not self.stop_requested:
+            limits.append(self.high - len(self.rx))
+        received = self.stats.bytes_received
+        if self.options.disconnect_after is not None:
+            limits.append(self.options.disconnect_after - received)
+        if not self.stall_done:
+            limits.append(self.stall_at - received)
+        return max(1, min(limits))
+
+    def _arrive(self, clean: bytes, data: bytes, t: float) -> None:
+        """``data`` (``clean`` before noise) arrives byte by byte after ``t``."""
+        first, last = t + self.byte_time, t + len(data) * self.byte_time
+        self.advance(first)
+        self._note_arrival(first)
+        stats = self.stats
+        stats.bytes_received += len(data)
+        if self._rng is not None:
+            stats.bytes_corrupted += int(np.count_nonzero(
+                np.frombuffer(clean, np.uint8) != np.frombuffer(data, np.uint8)))
+        if len(data) == 1 and (self._in_special() or self.SPECIAL.match(data)):
+            if "stall" in self.frozen:
+                self.deferred.append(data[0])
+            else:
+                self._special(data[0])
+        else:
+            keep = data[:max(self.free, 0)]
+            lost = len(data) - len(keep)
+            if keep:
+                self._store(keep)
+            if lost:
+                stats.bytes_lost += lost
+                if keep or not self._overrunning:
+                    stats.overruns += 1
+                    self._overrun()
+            self._overrunning = lost > 0
+            stats.max_fill = max(stats.max_fill, len(self.rx))
+        self._spend(last)
+        received = stats.bytes_received
+        if self.options.disconnect_after is not None and received >= self.options.disconnect_after:
+            self.disconnected = True
+        if not self.stall_done and received >= self.stall_at:
+            self.stall_done, self.stall_until = True, self.t + self.options.stall
+            self._freeze("stall")
+        self.advance(last)
+
+    def _note_arrival(self, t: float) -> None:
+        stats = self.stats
+        if stats.first_byte is None:
+            stats.first_byte = t
+        if self._idle > 0:
+            kind = self._idle_kind()
+            if kind == "starved":
+                stats.starved_time += self._idle
+            elif kind != "ended":
+                stats.paused_time += self._idle
+                stats.pauses.append(PauseRecord(t - self._idle, self._idle, kind))
+            self._idle = 0.0
+
+    def _corrupt(self, data: bytes) -> bytes:
+        """``data`` with one random bit flipped in each byte hit by the noise."""
+        if self._rng is None or not data:
+            return data
+        rate = self.options.noise
+        draws = self._rng.random(len(data))
+        hit = draws < rate
+        if not hit.any():
+            return data
+        values = np.frombuffer(data, np.uint8).copy()
+        bits = np.minimum((draws[hit] / rate * 8).astype(np.uint8), 7)
+        values[hit] ^= np.left_shift(np.uint8(1), bits)
+        return values.tobytes()
+
+    def _store(self, data: bytes) -> None:
+        self.rx += data
+        self._update_flow()
+
+    def _free(self, upto: int) -> None:
+        """The device has read the stream up to offset ``upto``."""
+        count = upto - self.base
+        if count > 0:
+            del self.rx[:count]
+            self.base = upto
+            self._update_flow()
+
+    def _update_flow(self) -> None:
+        if self.flow not in ("xonxoff", "rtscts"):
+            return
+        fill = len(self.rx)
+        if not self.stop_requested and fill >= self.high:
+            self.stop_requested = True
+            self._send_flow(XOFF)
+        elif self.stop_requested and fill <= self.low:
+            self.stop_requested = False
+            self._send_flow(XON)
+
+    def _send_flow(self, byte: int) -> None:
+        if self.flow != "xonxoff" or self.options.mute:
+            return
+        self.xoff = byte == XOFF
+        if self.xoff:
+            self.stats.xoff_sent += 1
+        else:
+            self.stats.xon_sent += 1
+        if not self.swallow_flow_bytes:
+            self.out.append(byte)
+
+    def reply(self, text: str) -> None:
+        """Send ``text`` and the protocol's line terminator (nothing when mute)."""
+        if not self.options.mute:
+            self.out += (text + self.TERMINATOR).encode("ascii")
+
+    # --- protocol -----------------------------------------------------------------------
+
+    def _work(self) -> None:
+        """Read and execute what the buffer holds, as far as the device can now."""
+        raise NotImplementedError
+
+    def _hungry(self) -> bool:
+        """The device is waiting for the next command (so its arrival time matters)."""
+        raise NotImplementedError
+
+    def _in_special(self) -> bool:
+        """The next byte continues a special sequence."""
+        return False
+
+    def _special(self, byte: int) -> None:
+        raise NotImplementedError
+
+    def _overrun(self) -> None:
+        """Bytes were just lost (a device may flag an error)."""
+
+    def _idle_kind(self) -> str:
+        """What idling now is: "starved", "ended", or a pause reason."""
+        return "starved"
+
+    def _drawn(self) -> list[Stroke]:
+        raise NotImplementedError

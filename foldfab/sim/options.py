@@ -1,0 +1,130 @@
+"""Simulator options: the query of a ``sim://`` URL or ``foldfab sim --option key=value``.
+
+Every option, its type and meaning (the fault options describe what a test provokes):
+
+=====================  ================================================================
+``time``               ``real`` (default), ``fast`` (the virtual clock runs ``speedup``
+                       times the wall clock) or ``instant`` (only blocking host calls
+                       move it; ``sim://`` only)
+``speedup``            ``fast`` only: how many virtual seconds per wall second (50)
+``sheet``              sheet the strokes are reported on: ``A3``, ``A4 landscape``,
+                       ``297x420`` (default: the profile's)
+``flow``               the device's handshake instead of the profile's ``[buffer]
+                       flow_control``: ``xonxoff``, ``rtscts``, ``escb``, ``grbl``, ``none``
+``buffer``             receive buffer bytes instead of the profile's ``[buffer] size``
+``planner``            GRBL planner blocks (16; one is always kept free, as in GRBL)
+``reset_on_open``      GRBL: 1 (default) the board resets and prints its banner when the
+                       port opens (Arduino DTR reset); 0 it stays silent until a soft reset
+``disconnect_after``   after the device received that many bytes the cable is pulled
+``error_at``           GRBL: line N answers ``error:<error_code>`` and is not executed;
+                       HPGL: instruction N is not executed and sets ``OE`` to ``error_code``
+``error_code``         default 20 for GRBL ("unsupported or invalid g-code command", what a
+                       line garbled in transit gives), 1 for HPGL ("instruction not recognized")
+``noise``              probability that a received byte has one bit flipped
+``seed``               random seed of ``noise`` (0)
+``stall``              seconds the device stops consuming and answering, once
+``stall_at``           received byte count that starts the stall (default: four buffers)
+``mute``               1: the device never answers: no banner, replies, XON; CTS low
+=====================  ================================================================
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, fields
+from typing import Iterable
+
+from foldfab.devices import FLOW_CONTROLS, parse_sheet
+from foldfab.errors import FoldfabError
+
+TIME_MODES = ("real", "fast", "instant")
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """Validated simulator options (see the module docstring)."""
+
+    time: str = "real"
+    speedup: float = 50.0
+    sheet: tuple[float, float] | None = None
+    flow: str | None = None
+    buffer: int | None = None
+    planner: int = 16
+    reset_on_open: bool = True
+    disconnect_after: int | None = None
+    error_at: int | None = None
+    error_code: int | None = None
+    noise: float = 0.0
+    seed: int = 0
+    stall: float = 0.0
+    stall_at: int | None = None
+    mute: bool = False
+
+    def as_dict(self) -> dict:
+        """The options that differ from the defaults, for reports."""
+        default = SimOptions()
+        return {f.name: getattr(self, f.name) for f in fields(self)
+                if getattr(self, f.name) != getattr(default, f.name)}
+
+
+def _count(lo: int):
+    def parse(text: str) -> int | None:
+        return int(text) if re.fullmatch(r"\d+", text) and int(text) >= lo else None
+    return parse
+
+
+def _seconds(text: str) -> float | None:
+    try:
+        value = float(text)
+    except ValueError:
+        return None
+    return value if 0 <= value < float("inf") else None
+
+
+def _probability(text: str) -> float | None:
+    value = _seconds(text)
+    return value if value is not None and value <= 1 else None
+
+
+def _flag(text: str) -> bool | None:
+    return {"1": True, "true": True, "yes": True, "0": False, "false": False, "no": False}.get(
+        text.lower())
+
+
+def _sheet(text: str) -> tuple[float, float] | None:
+    match = re.fullmatch(r"(\d+(?:\.\d*)?)\s*[xX]\s*(\d+(?:\.\d*)?)", text)
+    return parse_sheet([float(match.group(1)), float(match.group(2))] if match else text)
+
+
+_PARSERS = {
+    "time": ("real, fast or instant", lambda t: t if t in TIME_MODES else None),
+    "speedup": ("a number >= 1", lambda t: v if (v := _seconds(t)) is not None and v >= 1 else None),
+    "sheet": ('A4, A3, Letter (+ " landscape") or WxH in mm', _sheet),
+    "flow": (", ".join(FLOW_CONTROLS), lambda t: t if t in FLOW_CONTROLS else None),
+    "buffer": ("a byte count >= 2", _count(2)),
+    "planner": ("a block count >= 2", _count(2)),
+    "reset_on_open": ("0 or 1", _flag),
+    "disconnect_after": ("a byte count", _count(0)),
+    "error_at": ("a line or instruction number >= 1", _count(1)),
+    "error_code": ("an error number >= 1", _count(1)),
+    "noise": ("a probability 0..1", _probability),
+    "seed": ("an integer >= 0", _count(0)),
+    "stall": ("seconds >= 0", _seconds),
+    "stall_at": ("a byte count", _count(0)),
+    "mute": ("0 or 1", _flag),
+}
+
+
+def parse_options(pairs: Iterable[tuple[str, str]], where: str = "simulator") -> SimOptions:
+    """Options from (key, text) pairs; a FoldfabError names ``where``, the key and what it takes."""
+    values: dict = {}
+    for key, text in pairs:
+        if key not in _PARSERS:
+            raise FoldfabError(f"{where}: unknown option {key!r}; known options: "
+                               f"{', '.join(_PARSERS)}")
+        expected, parse = _PARSERS[key]
+        value = parse(text.strip())
+        if value is None:
+            raise FoldfabError(f"{where}: option {key}={text!r}: expected {expected}")
+        values[key] = value
+    return SimOptions(**values)

@@ -1,0 +1,106 @@
+"""What a simulated plotter records: statistics, and strokes as JSON or an SVG preview."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from foldfab.interpret import Stroke
+    from foldfab.sim.device import Simulator
+
+
+@dataclass
+class PauseRecord:
+    """The device waited for the operator: held (GRBL ``M0``, ``!``) or parked (HPGL ``SP0``)."""
+
+    start: float
+    """Virtual seconds."""
+    duration: float | None
+    """None while it lasts."""
+    reason: str
+
+
+@dataclass
+class SimStats:
+    """Counters and virtual times (seconds) of one simulated device."""
+
+    bytes_received: int = 0
+    """Every byte that reached the device, realtime and device-control bytes included."""
+    bytes_lost: int = 0
+    """Bytes dropped because the receive buffer was full (overrun)."""
+    bytes_corrupted: int = 0
+    """Bytes the ``noise`` option altered."""
+    overruns: int = 0
+    """Separate overrun episodes (runs of lost bytes)."""
+    max_fill: int = 0
+    """Peak receive-buffer fill, bytes."""
+    commands: int = 0
+    """HPGL instructions / G-code lines received complete."""
+    errors: list[str] = field(default_factory=list)
+    """Errors reported: ``error:N`` (GRBL), ``OE N`` / ``ESC.E N`` (HPGL)."""
+    alarms: list[str] = field(default_factory=list)
+    xoff_sent: int = 0
+    xon_sent: int = 0
+    busy_time: float = 0.0
+    """Moving, lifting the pen or dwelling (equals the estimate for a complete program)."""
+    starved_time: float = 0.0
+    """Idle with nothing to execute while more of the job was still to come."""
+    paused_time: float = 0.0
+    """Held or parked for the operator (see ``pauses``)."""
+    stalled_time: float = 0.0
+    first_byte: float | None = None
+    """Virtual time the first byte arrived."""
+    last_activity: float | None = None
+    """Virtual time the last command or move finished."""
+    pauses: list[PauseRecord] = field(default_factory=list)
+
+    @property
+    def plot_time(self) -> float:
+        """From the first byte received to the end of the last move (virtual seconds)."""
+        if self.first_byte is None or self.last_activity is None:
+            return 0.0
+        return max(0.0, self.last_activity - self.first_byte)
+
+    def as_dict(self) -> dict:
+        return dict(asdict(self), plot_time=self.plot_time)
+
+    def summary(self) -> str:
+        """Human-readable lines."""
+        lines = [
+            f"bytes        {self.bytes_received} received, {self.bytes_lost} lost "
+            f"({self.overruns} overruns), {self.bytes_corrupted} corrupted, peak fill {self.max_fill}",
+            f"commands     {self.commands}, errors {len(self.errors)}"
+            + (f" ({', '.join(self.errors[:5])}{', ...' if len(self.errors) > 5 else ''})"
+               if self.errors else "") + (f", alarms {', '.join(self.alarms)}" if self.alarms else ""),
+            f"flow         {self.xoff_sent} XOFF, {self.xon_sent} XON",
+            f"time         plot {self.plot_time:.2f} s: busy {self.busy_time:.2f} s, starved "
+            f"{self.starved_time:.2f} s, paused {self.paused_time:.2f} s ({len(self.pauses)} pauses), "
+            f"stalled {self.stalled_time:.2f} s",
+        ]
+        return "\n".join(lines)
+
+
+def stroke_dict(stroke: Stroke) -> dict:
+    return {"points": stroke.points.round(6).tolist(), "pen": stroke.pen, "force": stroke.force,
+            "speed": stroke.speed, "pen_down": stroke.pen_down, "offset": stroke.offset}
+
+
+def recording_json(sim: Simulator) -> str:
+    """Device, options, statistics and every drawn stroke (sheet mm) as JSON text."""
+    return json.dumps({
+        "device": sim.device.name,
+        "protocol": sim.device.protocol,
+        "sheet_mm": list(sim.sheet),
+        "options": sim.options.as_dict(),
+        "stats": sim.stats.as_dict(),
+        "strokes": [stroke_dict(s) for s in sim.strokes],
+    }, indent=1)
+
+
+def recording_svg(sim: Simulator) -> str:
+    """The drawn strokes and travel as foldfab's preview SVG."""
+    from foldfab.preview import render_preview
+
+    return render_preview(sim.interpretation(), sim.device, sim.sheet)

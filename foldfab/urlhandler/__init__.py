@@ -1,0 +1,1 @@
+"""pyserial URL handlers of foldfab (``sim://``); :mod:`foldfab.transport` registers them."""

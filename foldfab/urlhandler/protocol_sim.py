@@ -1,0 +1,207 @@
+"""pyserial URL handler ``sim://DEVICE?option=value&...``: a simulated plotter as a port.
+
+``DEVICE`` is a device profile name or path (:func:`foldfab.devices.load_device`);
+the options are :mod:`foldfab.sim.options`.  The simulator is ``port.simulator``
+(strokes, stats, write_svg, to_json, device).  Assign a profile to ``port.profile``
+before ``open()`` to simulate it under ``sim://`` with no name, or an existing
+simulator to ``port.simulator`` to plug the cable back into the same device.
+
+The port's settings act as a host driver's would: ``baudrate``, ``bytesize``,
+``parity`` and ``stopbits`` set the wire time; with ``xonxoff`` the driver stops
+sending on XOFF and swallows XON/XOFF; with ``rtscts`` it stops while CTS is low.
+``write`` blocks (virtually) until its last byte has arrived; with ``write_timeout``
+it raises :class:`~serial.SerialTimeoutException` when flow control holds it longer.
+In ``instant`` time a poll that finds nothing (``in_waiting``, ``cts``, ``read``
+with ``timeout=0``) lets ``POLL_STEP`` of virtual time pass, as a polling host's
+sleep would.  After ``disconnect_after`` bytes every call raises
+:class:`~serial.SerialException`, as with a pulled cable.
+"""
+
+from __future__ import annotations
+
+import threading
+from urllib.parse import parse_qsl, unquote, urlsplit
+
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException, SerialTimeoutException
+
+from foldfab.sim.clock import IDLE_WAIT
+
+POLL_STEP = 0.01
+"""Virtual seconds an empty poll lets pass in ``instant`` time."""
+
+
+class Serial(SerialBase):
+    """A simulated plotter behind pyserial's port API."""
+
+    def __init__(self, *args, **kwargs):
+        self.simulator = None
+        self.profile = None
+        self._cancel = threading.Event()
+        super().__init__(*args, **kwargs)
+
+    def open(self) -> None:
+        from foldfab.errors import FoldfabError
+
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        if self._port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        if self.simulator is None:
+            try:
+                self.simulator = self._create(self._port)
+            except FoldfabError as exc:
+                raise SerialException(str(exc)) from None
+        self.simulator.disconnected = False  # the cable is back in
+        self.is_open = True
+        self._reconfigure_port()
+        self.simulator.connect()
+
+    def _create(self, url: str):
+        from foldfab.devices import load_device
+        from foldfab.errors import FoldfabError
+        from foldfab.sim import create_simulator, parse_options
+
+        parts = urlsplit(url)
+        if parts.scheme != "sim":
+            raise FoldfabError(f"{url}: expected sim://DEVICE?option=value&...")
+        name = unquote(parts.netloc + parts.path)
+        if not name and self.profile is None:
+            raise FoldfabError(f"{url}: no device: name one (sim://grbl) or open it with a "
+                               "device profile (foldfab.transport.open_port)")
+        device = load_device(name) if name else self.profile
+        options = parse_options(parse_qsl(parts.query, keep_blank_values=True), url)
+        return create_simulator(device, options)
+
+    def close(self) -> None:
+        self.is_open = False
+        self._cancel.set()
+
+    def _reconfigure_port(self) -> None:
+        sim = self.simulator
+        if sim is None or not self.is_open:
+            return
+        if not isinstance(self._baudrate, int) or self._baudrate <= 0:
+            raise ValueError(f"invalid baudrate: {self._baudrate!r}")
+        sim.configure_wire(self._baudrate, self._bytesize, self._parity, self._stopbits)
+        sim.host_flow = frozenset(name for name, on in
+                                  (("xonxoff", self._xonxoff), ("rtscts", self._rtscts)) if on)
+        sim.swallow_flow_bytes = bool(self._xonxoff)
+
+    # --- data ---------------------------------------------------------------------------
+
+    def _live(self):
+        """The simulator, brought up to the host's time; raises if closed or unplugged."""
+        if not self.is_open:
+            raise PortNotOpenError()
+        sim = self.simulator
+        if sim.disconnected:
+            raise SerialException(f"{self._port}: device disconnected (cable pulled after "
+                                  f"{sim.stats.bytes_received} bytes)")
+        sim.advance(sim.clock.now())
+        return sim
+
+    def _poll(self, sim) -> None:
+        """An empty poll: in instant time, let a moment pass."""
+        if sim.clock.rate is None:
+            sim.clock.sleep_until(sim.clock.now() + POLL_STEP)
+            sim.advance(sim.clock.now())
+
+    @property
+    def in_waiting(self) -> int:
+        sim = self._live()
+        if not sim.out:
+            self._poll(sim)
+        return len(sim.out)
+
+    def read(self, size: int = 1) -> bytes:
+        sim = self._live()
+        self._cancel.clear()
+        clock = sim.clock
+        deadline = None if self._timeout is None else clock.now() + self._timeout
+        data = bytearray(sim.take_output(size))
+        while len(data) < size and self._timeout != 0:
+            if sim.run_until(lambda: bool(sim.out), deadline):
+                clock.sleep_until(sim.t)
+                data += sim.take_output(size - len(data))
+                continue
+            if deadline is not None:  # timed out
+                clock.sleep_until(deadline)
+                break
+            if self._cancel.wait(IDLE_WAIT) or not self.is_open:
+                break  # nothing will ever come; cancel_read() or close() ends the wait
+            sim.advance(clock.now())
+        if not data and self._timeout == 0:
+            self._poll(sim)
+        return bytes(data)
+
+    def write(self, data) -> int:
+        if isinstance(data, int) or not isinstance(data, (bytes, bytearray, memoryview)):
+            raise TypeError(f"write() takes bytes, not {type(data).__name__} "
+                            "(pyserial's write(int) would send that many zero bytes)")
+        sim = self._live()
+        self._cancel.clear()
+        data = bytes(data)
+        clock = sim.clock
+        deadline = None if self._write_timeout is None else clock.now() + self._write_timeout
+        done = 0
+        while done < len(data):
+            sent, until = sim.transmit(data[done:], clock.now(), deadline)
+            done += sent
+            clock.sleep_until(until)
+            if sim.disconnected and done < len(data):
+                raise SerialException(f"{self._port}: device disconnected (cable pulled after "
+                                      f"{sim.stats.bytes_received} bytes)")
+            if done < len(data):
+                if deadline is not None:  # transmit stopped at the deadline
+                    raise SerialTimeoutException("Write timeout")
+                if self._cancel.wait(IDLE_WAIT) or not self.is_open:  # flow control holds it
+                    break
+        return done
+
+    def flush(self) -> None:
+        """Everything written has arrived already (``write`` returns when it has)."""
+        self._live()
+
+    def reset_input_buffer(self) -> None:
+        self._live().out.clear()
+
+    def reset_output_buffer(self) -> None:
+        self._live()
+
+    def cancel_read(self) -> None:
+        self._cancel.set()
+
+    def cancel_write(self) -> None:
+        self._cancel.set()
+
+    # --- modem lines --------------------------------------------------------------------
+
+    @property
+    def cts(self) -> bool:
+        sim = self._live()
+        if not sim.cts:
+            self._poll(sim)
+        return sim.cts
+
+    @property
+    def dsr(self) -> bool:
+        return not self._live().options.mute
+
+    @property
+    def ri(self) -> bool:
+        self._live()
+        return False
+
+    @property
+    def cd(self) -> bool:
+        self._live()
+        return True
+
+    def _update_rts_state(self) -> None:
+        """RTS is not simulated: the device never stops sending its short replies."""
+
+    def _update_dtr_state(self) -> None:
+        """DTR is not simulated (``reset_on_open`` models the Arduino reset at open)."""
+
+    def _update_break_state(self) -> None:
+        """A break is not simulated."""
