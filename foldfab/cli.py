@@ -458,6 +458,62 @@ def _add_queue_parser(sub) -> None:
     run.set_defaults(func=cmd_queue_run)
 
 
+def cmd_sim(args: argparse.Namespace) -> int:
+    """Serve a simulated plotter on a pseudo-terminal until SIGINT/SIGTERM; report what it did."""
+    import signal
+    import threading
+
+    from foldfab.devices import load_device
+    from foldfab.errors import FoldfabError
+    from foldfab.sim import parse_options
+    from foldfab.sim.pty import serve_pty
+
+    device = load_device(args.device)
+    pairs = [("time", args.time)]
+    for item in args.option:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise FoldfabError(f"--option {item!r}: expected KEY=VALUE, e.g. noise=0.001")
+        pairs.append((key.strip(), value))
+    options = parse_options(pairs, "foldfab sim")
+    outputs = [(path, kind) for path, kind in ((args.record, "json"), (args.svg, "svg")) if path]
+    for path, kind in outputs:
+        _check_output(Path(path), "--record" if kind == "json" else "--svg", (f".{kind}",))
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        sim = serve_pty(device, options, lambda path: print(path, flush=True), stop)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    for path, kind in outputs:
+        {"json": sim.write_json, "svg": sim.write_svg}[kind](path)
+    strokes = sim.strokes
+    print(f"strokes      {len(strokes)} drawn, {sum(s.length for s in strokes):.1f} mm")
+    print(sim.stats.summary())
+    for path, _ in outputs:
+        print(f"wrote        {path}")
+    return 0
+
+
+def _add_sim_parser(sub) -> None:
+    sim = sub.add_parser("sim", help="run a simulated plotter on a pseudo-terminal",
+                         description="Serve a simulated plotter of a device profile on a pseudo-terminal: "
+                                     "the first line printed is its path (e.g. /dev/pts/5), which any "
+                                     "program opens like the real port.  Runs until interrupted, then "
+                                     "writes the recordings and prints the statistics.")
+    sim.add_argument("device", metavar="NAME", help="device profile: a built-in name, a profile in your "
+                                                    "config folder, or a .toml path")
+    sim.add_argument("--pty", action="store_true", required=True, help="serve on a pseudo-terminal")
+    sim.add_argument("--time", choices=("real", "fast"), default="real",
+                     help="real: at the plotter's own speed; fast: 50 times faster (the statistics stay true)")
+    sim.add_argument("-o", "--option", action="append", default=[], metavar="KEY=VALUE",
+                     help="simulator option, as in sim:// URLs (noise=0.001, stall=5, flow=xonxoff, ...); repeatable")
+    sim.add_argument("--record", metavar="OUT.json", help="write the statistics and drawn strokes as JSON")
+    sim.add_argument("--svg", metavar="OUT.svg", help="write the drawn strokes as a preview SVG")
+    sim.set_defaults(func=cmd_sim)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
     from foldfab import __version__
@@ -492,6 +548,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_fabrication_args(preview, "preview SVG file")
     preview.set_defaults(func=cmd_preview)
     _add_queue_parser(sub)
+    _add_sim_parser(sub)
     return parser
 
 
