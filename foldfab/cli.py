@@ -162,15 +162,10 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_preview(args: argparse.Namespace) -> int:
     """Render the dry run: the program read back and drawn as the machine would move."""
-    from foldfab.atomic import write_text
-    from foldfab.interpret import interpret
-    from foldfab.preview import render_preview
-
     output = Path(args.output)
     _check_output(output, "-o", (".svg",))
     design, device, fab = _fabricate(args)
-    svg = render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan)
-    write_text(output, svg)
+    _write_preview(fab, device, output)
     info = fabrication_report(fab, device)
     info["written"] = str(output)
     print(json.dumps(info, indent=2) if args.json else format_report(info) + f"\nwrote        {output}")
@@ -185,6 +180,118 @@ def _add_fabrication_args(parser: argparse.ArgumentParser, output_help: str) -> 
     parser.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
 
+
+
+# --- foldfab plot ----------------------------------------------------------------------------
+
+
+def _operator(args: argparse.Namespace, prompting: list[bool]):
+    """Answers the program's pauses: a prompt on a terminal, yes with --yes, else None."""
+    if sys.stdin.isatty():
+        def ask(message: str) -> bool:
+            print(f"\npause: {message}", file=sys.stderr)
+            prompting[0] = True
+            try:
+                answer = input("Press Enter to continue, or type q and Enter to stop: ")
+            except (EOFError, KeyboardInterrupt):
+                return False
+            finally:
+                prompting[0] = False
+            return answer.strip().lower() not in ("q", "quit", "stop")
+        return ask
+    if args.yes:
+        def scripted(message: str) -> bool:
+            print(f"foldfab: pause (answered by --yes): {message}", file=sys.stderr)
+            return True
+        return scripted
+    return None
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    """Build the job's program as ``export`` does and stream it to the plotter."""
+    import signal
+    import threading
+
+    from foldfab.errors import FoldfabError
+    from foldfab.progress import reporter
+    from foldfab.resume import PlotStopped, plot
+
+    if args.preview:
+        _check_output(Path(args.preview), "--preview", (".svg",))
+    design, device, fab = _fabricate(args)
+    port = args.port or device.port
+    if not port:
+        raise FoldfabError(f"{device.name} has no port: give --port PORT (a serial port such as /dev/ttyUSB0, "
+                           f"or the simulated plotter sim://), or set port in {device.source}")
+    if args.preview:
+        _write_preview(fab, device, Path(args.preview))
+    prompting = [False]
+    operator = _operator(args, prompting)
+    if fab.program.pauses and operator is None:
+        raise FoldfabError(f"this job pauses {len(fab.program.pauses)} time(s) for the operator "
+                           f"({fab.program.pauses[0].message}); run it on a terminal, or pass --yes "
+                           "to continue at every pause without asking")
+    cancel = threading.Event()
+
+    def interrupt(signum, frame):  # first Ctrl-C: stop safely; at a prompt or a second time: now
+        if cancel.is_set() or prompting[0]:
+            raise KeyboardInterrupt
+        cancel.set()
+        print("\nfoldfab: stopping: finishing the current command and lifting the tool "
+              "(Ctrl-C again to stop waiting)", file=sys.stderr)
+
+    previous = signal.signal(signal.SIGINT, interrupt)
+    try:
+        plot(fab.program, device, job=args.job, port=port, resume=args.resume, baudrate=args.baud,
+             xonxoff=args.xonxoff, rtscts=args.rtscts, events=reporter(sys.stdout, args.json),
+             cancel=cancel, operator=operator)
+    except PlotStopped as stop:
+        message = str(stop)
+        if stop.token:
+            if args.json:
+                print(json.dumps({"event": "resume", "token": stop.token, "stroke": stop.stroke,
+                                  "strokes": stop.strokes}), flush=True)
+            message += (f"; to finish the job run: foldfab plot {args.job} --device {args.device} "
+                        f"--port {port} --resume {stop.token}")
+        kind = "stopped" if stop.exit_code == 130 else "error"
+        print(f"foldfab: {kind}: {message}", file=sys.stderr)
+        return stop.exit_code
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    return 0
+
+
+def _write_preview(fab, device, output: Path) -> None:
+    """The dry-run SVG of a fabrication (``foldfab preview``, ``foldfab plot --preview``)."""
+    from foldfab.atomic import write_text
+    from foldfab.interpret import interpret
+    from foldfab.preview import render_preview
+
+    write_text(output, render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan))
+
+
+def _add_plot_parser(sub) -> None:
+    plot = sub.add_parser("plot", help="send a job to a plotter, with progress, safe stop and resume",
+                          description="Build the job's program as 'foldfab export' does and stream it to "
+                                      "the plotter with its handshake.  Ctrl-C stops safely (tool up) and "
+                                      "prints how to resume.")
+    plot.add_argument("job", help="job file (TOML)")
+    plot.add_argument("--device", required=True, metavar="NAME",
+                      help="device profile: a built-in name, a profile in your config folder, or a .toml path")
+    plot.add_argument("--port", metavar="PORT",
+                      help="serial port or pyserial URL (default: the profile's port); sim:// for the "
+                           "simulated plotter of the device (options: sim://?time=fast)")
+    plot.add_argument("--preview", metavar="OUT.svg", help="also write the dry-run preview SVG")
+    plot.add_argument("--baud", type=_positive_int, metavar="N", help="baud rate instead of the profile's")
+    plot.add_argument("--xonxoff", action=argparse.BooleanOptionalAction, default=None,
+                      help="software flow control on the port (default: the profile's)")
+    plot.add_argument("--rtscts", action=argparse.BooleanOptionalAction, default=None,
+                      help="hardware flow control on the port (default: the profile's)")
+    plot.add_argument("--resume", metavar="TOKEN", help="finish a stopped plot (foldfab printed the token)")
+    plot.add_argument("--yes", action="store_true", help="without a terminal, continue at every pause")
+    plot.add_argument("--json", action="store_true", help="progress as JSON lines on stdout")
+    plot.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
+    plot.set_defaults(func=cmd_plot)
 
 # --- foldfab queue ---------------------------------------------------------------------------
 
@@ -547,6 +654,7 @@ def build_parser() -> argparse.ArgumentParser:
                                          "sheet, plottable area, pauses, and the time estimate.")
     _add_fabrication_args(preview, "preview SVG file")
     preview.set_defaults(func=cmd_preview)
+    _add_plot_parser(sub)
     _add_queue_parser(sub)
     _add_sim_parser(sub)
     return parser

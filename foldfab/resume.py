@@ -1,0 +1,282 @@
+"""Stop a plot safely and finish it later: resume states and resumed programs.
+
+When a plot stops early (Ctrl-C, a serial fault, a plotter error), the streaming
+engine has already lifted the tool and counted, conservatively, how many bytes the
+plotter executed.  :func:`plot` then saves a :class:`ResumeState` and tells the user
+``foldfab plot JOB --device NAME --resume TOKEN``.  Resuming rebuilds the program
+exactly as before, refuses if it changed (SHA-256 of the text), and streams
+:func:`resume_program`: the program's own preamble (``IN;``, or ``G21 G90 G17`` and
+the pen up), the tool state in force at the first stroke not yet drawn (the last
+``SP``/``FS``/``VS`` before it, or the last G-code motion mode and feed), a move with
+the tool up to that stroke's start, then the original text from that stroke on.
+No stroke is lost and only the interrupted stroke can be drawn twice.
+
+Resume states are JSON files in ``$XDG_STATE_HOME/foldfab/resume/`` (default
+``~/.local/state``), one per token, written atomically::
+
+    {"version": 1, "token": "3f9a1c", "created": "2026-01-31T12:00:00+00:00",
+     "job": "/abs/path/job.toml", "device": "hp7475a", "port": "/dev/ttyUSB0",
+     "program_sha256": "...", "program_bytes": 9156,
+     "stroke": 41, "strokes": 279, "pauses_done": 0, "reason": "..."}
+
+``stroke`` is the index (in ``interpret(program).strokes``) of the first stroke not
+known to be drawn; ``pauses_done`` counts the operator pauses already confirmed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import secrets
+import threading
+from dataclasses import asdict, dataclass, field, replace
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable
+
+from foldfab.errors import FoldfabError
+
+if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
+    from foldfab.progress import ProgressEvent
+    from foldfab.program import Program
+    from foldfab.stream import StreamResult, StreamStopped
+
+STATE_VERSION = 1
+_TOKEN = re.compile(r"[0-9a-f]{6,32}")
+
+
+def program_hash(program: Program) -> str:
+    """SHA-256 of the program text: a resumed job must send the very same program."""
+    return hashlib.sha256(program.text.encode("ascii")).hexdigest()
+
+
+def state_dir() -> Path:
+    """``$XDG_STATE_HOME/foldfab/resume`` (default ``~/.local/state/foldfab/resume``)."""
+    base = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
+    return Path(base) / "foldfab" / "resume"
+
+
+@dataclass(frozen=True)
+class ResumeState:
+    """Where an interrupted plot stopped (see the module docstring for the file format)."""
+
+    token: str
+    job: str
+    device: str
+    port: str
+    program_sha256: str
+    program_bytes: int
+    stroke: int
+    strokes: int
+    pauses_done: int
+    reason: str
+    created: str = field(default_factory=lambda: datetime.now(timezone.utc).isoformat(timespec="seconds"))
+    version: int = STATE_VERSION
+
+    @property
+    def path(self) -> Path:
+        return state_dir() / f"{self.token}.json"
+
+
+def new_token() -> str:
+    """A short token naming a resume state that does not exist yet."""
+    while True:
+        token = secrets.token_hex(3)
+        if not (state_dir() / f"{token}.json").exists():
+            return token
+
+
+def save_state(state: ResumeState) -> Path:
+    """Write ``state`` atomically; return its path."""
+    from foldfab.atomic import write_text
+
+    state.path.parent.mkdir(parents=True, exist_ok=True)
+    write_text(state.path, json.dumps(asdict(state), indent=2) + "\n")
+    return state.path
+
+
+def load_state(token: str) -> ResumeState:
+    """The saved state named ``token``; a clear error if there is none or it is unreadable."""
+    if not _TOKEN.fullmatch(token):
+        raise FoldfabError(f"--resume {token}: not a resume token (foldfab prints one when a plot stops)")
+    path = state_dir() / f"{token}.json"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FoldfabError(f"--resume {token}: no saved plot with that token in {path.parent} "
+                           "(it is deleted once the plot finishes)") from None
+    except (OSError, ValueError) as exc:
+        raise FoldfabError(f"--resume {token}: cannot read {path}: {exc}") from None
+    try:
+        state = ResumeState(**data)
+    except TypeError:
+        raise FoldfabError(f"--resume {token}: {path} is not a foldfab resume state") from None
+    if state.version != STATE_VERSION:
+        raise FoldfabError(f"--resume {token}: {path} has version {state.version}; "
+                           f"this foldfab reads version {STATE_VERSION}")
+    return state
+
+
+def check_state(state: ResumeState, program: Program, job: str, device: DeviceProfile) -> None:
+    """Refuse to resume ``state`` with a different job, device or program."""
+    if state.device != device.name:
+        raise FoldfabError(f"--resume {state.token}: that plot ran on device {state.device!r}, "
+                           f"not {device.name!r}; use --device {state.device}")
+    if Path(state.job) != Path(job).resolve():
+        raise FoldfabError(f"--resume {state.token}: that plot was {state.job}, not {Path(job).resolve()}")
+    if state.program_sha256 != program_hash(program):
+        raise FoldfabError(
+            f"--resume {state.token}: the program of {job} for {device.name} changed since the plot "
+            "stopped (job file, device profile or foldfab version); resuming would misplace the "
+            "strokes, so plot the whole job again on a new sheet")
+
+
+def resume_program(program: Program, device: DeviceProfile, stroke: int,
+                   pauses_done: int | None = None) -> Program:
+    """The part of ``program`` from stroke number ``stroke`` on, ready to send to an idle plotter.
+
+    Pauses the operator has not confirmed yet (beyond ``pauses_done``; by default every
+    pause before the stroke counts as confirmed) are asked again before the tool moves.
+    Strokes of the result are ``interpret(program).strokes[stroke:]``, in order, with the
+    same tool, force and speed.
+    """
+    from foldfab.interpret import interpret
+    from foldfab.program import PauseMark, Program, Section
+
+    strokes = interpret(program, device).strokes
+    if not 0 <= stroke < len(strokes):
+        raise FoldfabError(f"cannot resume at stroke {stroke + 1}: the program draws "
+                           f"{len(strokes)} strokes")
+    target = strokes[stroke]
+    cut = target.offset
+    text = program.text
+    preamble = text[:program.sections[0].offset]  # IN; | units, modes and the tool up
+    before = [p for p in program.pauses if p.offset <= cut]
+    done = len(before) if pauses_done is None else pauses_done
+    pending = before[done:]
+    pause_text = "" if not pending or program.protocol == "hpgl" else "M0\n"
+    state, travel = _tool_state(program, device, cut), _travel(device, target.points[0], program.protocol)
+    head = preamble + pause_text
+    # HPGL selects the tool, then moves (as the writer does); G-code's travel is a G0, so the
+    # motion mode and feed are restored after it.
+    prelude = head + (state + travel if program.protocol == "hpgl" else travel + state)
+    shift = len(prelude) - cut
+    pauses = [PauseMark(len(head), pending[0].step, " ".join(p.message for p in pending))] \
+        if pending else []
+    pauses += [replace(p, offset=p.offset + shift) for p in program.pauses if p.offset > cut]
+    current = program.section_at(cut)
+    sections = [replace(current, offset=0)] if current is not None else []
+    sections += [replace(s, offset=s.offset + shift) for s in program.sections if s.offset > cut]
+    return Program(prelude + text[cut:], program.protocol, program.device, tuple(sections),
+                   tuple(pauses))
+
+
+def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
+    """Commands restoring the tool state ``program`` has set by byte ``offset``."""
+    text = program.text[:offset]
+    if program.protocol == "hpgl":
+        from foldfab.interpret import HPGLTokenizer
+
+        tokenizer = HPGLTokenizer()
+        commands = tokenizer.feed(text.encode("latin-1")) + tokenizer.close()
+        ends = [c.offset for c in commands[1:]] + [len(text)]
+        latest: dict[tuple, str] = {}
+        for command, end in zip(commands, ends):
+            if command.name in ("IN", "DF"):
+                latest.clear()
+            elif command.name in ("SP", "FS", "VS"):
+                key = (command.name, command.params[1:2])  # "VS v,pen" sets one pen's speed
+                latest.pop(key, None)
+                latest[key] = text[command.offset:end]
+        return "".join(latest.values())
+    from foldfab.interpret import GcodeMachine
+    from foldfab.program import fmt_number
+
+    machine = GcodeMachine(device, device.frame(device.sheet), None)
+    start = 0
+    for raw in text.split("\n"):
+        machine.execute(raw, start, start + len(raw) + 1)
+        start += len(raw) + 1
+    if machine.feed is None:
+        return "G0\n" if machine.motion == "G0" else ""
+    return f"{machine.motion} F{fmt_number(machine.feed * 60 / machine.scale, 3)}\n"
+
+
+def _travel(device: DeviceProfile, point, protocol: str) -> str:
+    """A pen-up move to ``point`` (sheet mm) in device coordinates."""
+    import numpy as np
+
+    from foldfab.program import fmt_number
+
+    x, y = device.frame(device.sheet).to_device(np.asarray([point]))[0].tolist()
+    if protocol == "hpgl":
+        return f"PU{round(x)},{round(y)};"
+    return f"G0 X{fmt_number(x, 3)} Y{fmt_number(y, 3)}\n"
+
+
+class PlotStopped(FoldfabError):
+    """A plot stopped before its end, after the safe stop; ``token`` names its resume state."""
+
+    def __init__(self, stop: StreamStopped, token: str | None, stroke: int, strokes: int):
+        left = (f"{strokes - stroke} of {strokes} strokes left (resume token {token})" if token
+                else "every stroke was drawn")
+        super().__init__(f"{stop}; {'tool lifted' if stop.lifted else 'the tool may still be down'}; {left}")
+        self.stop, self.token, self.stroke, self.strokes = stop, token, stroke, strokes
+        self.exit_code = stop.exit_code
+
+
+def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
+         resume: str | None = None, baudrate: int | None = None, xonxoff: bool | None = None,
+         rtscts: bool | None = None, events: Callable[[ProgressEvent], None] | None = None,
+         cancel: threading.Event | None = None, operator: Callable[[str], bool] | None = None,
+         stall_timeout: float = 30.0) -> StreamResult:
+    """Stream ``program`` (built from the job file ``job``) to ``device`` at ``port``.
+
+    With ``resume``, only what the saved state says is left is sent, after checking the
+    program is unchanged; the state is deleted once the plot finishes.  A plot that stops
+    early saves (or updates) its state and raises :class:`PlotStopped`.
+    """
+    from foldfab.interpret import interpret
+    from foldfab.stream import StreamStopped, stream
+    from foldfab.transport import open_port
+
+    state = load_state(resume) if resume else None
+    total = len(interpret(program, device).strokes)
+    first, done_before, sending = 0, 0, program
+    if state is not None:
+        check_state(state, program, job, device)
+        first = state.stroke
+        sending = resume_program(program, device, first, state.pauses_done)
+        done_before = state.pauses_done
+    cut = interpret(program, device).strokes[first].offset if total else 0
+    before_cut = sum(p.offset <= cut for p in program.pauses)
+    link = open_port(port, device, baudrate=baudrate, xonxoff=xonxoff, rtscts=rtscts)
+    try:
+        result = stream(link, sending, device, events=events, cancel=cancel, operator=operator,
+                        stall_timeout=stall_timeout)
+    except StreamStopped as stop:
+        from foldfab.progress import JobProgress
+
+        stroke = first + JobProgress(sending, device).strokes_done(stop.acknowledged)
+        # pauses: the pending ones (if any) come first in a resumed program, as one
+        pending = before_cut - done_before if state is not None else 0
+        answered = stop.pauses_done
+        pauses_done = (done_before + (pending if answered else 0)
+                       + max(answered - (1 if pending else 0), 0)) if state is not None else answered
+        token = None
+        if stroke < total:
+            token = state.token if state is not None else new_token()
+            save_state(ResumeState(token, str(Path(job).resolve()), device.name, port,
+                                   program_hash(program), len(program.text), stroke, total,
+                                   pauses_done, str(stop)))
+        elif state is not None:
+            state.path.unlink(missing_ok=True)
+        raise PlotStopped(stop, token, stroke, total) from None
+    finally:
+        link.close()
+    if state is not None:
+        state.path.unlink(missing_ok=True)
+    return result

@@ -1,0 +1,831 @@
+"""Stream a program to a plotter without losing a byte, and stop it safely.
+
+Plotters have small receive buffers: a sender that writes faster than the plotter
+draws overruns the buffer and commands are lost silently.  :func:`stream` sends a
+:class:`~foldfab.program.Program` over an open pyserial port with the handshake the
+device profile's ``[buffer] flow_control`` names.
+
+HP-GL (:class:`_HPGLSender`) sends whole commands (``;``-terminated) and never sends
+past a pause:
+
+* ``xonxoff``: foldfab reads XOFF (0x13) and XON (0x11) itself, so the handshake also
+  holds where no driver does it (sockets, pseudo-terminals, ``--no-xonxoff``); writes
+  are paced at the line rate so that at most :attr:`_HPGLSender.ahead` bytes are on the
+  wire when XOFF comes (a pseudo-terminal's kernel buffer would otherwise hold kilobytes).
+* ``rtscts``: ``port.cts`` is checked before every write (same pacing).
+* ``escb``: ``ESC.B`` asks the free buffer space; at most that much is sent.
+* ``none``: no handshake at all: at most one buffer is sent between two checkpoints.
+
+A *checkpoint* writes ``OE;`` and waits for the answer.  An output instruction is
+answered only when the plotter reaches it in its buffer, after the moves before it, so
+the round trip drains the buffer with every flow control, and the answer is the error
+register (cleared by reading): 0 means every command since the previous checkpoint
+was understood.  Checkpoints come at pauses, at the end and every buffer size of
+bytes (so an error is found within one buffer, and the executed count is exact).
+Between checkpoints the executed count is conservative: ``ESC.B`` gives it exactly at
+each query; the other modes assume a full buffer and the bytes on the wire are still
+to execute.
+
+GRBL 1.1 (:class:`_GrblSender`): the ``Grbl 1.1`` banner is awaited; without one after
+:data:`BANNER_WAIT` seconds a soft reset (0x18) provokes it.  Lines go by character
+counting (at most 127 bytes unacknowledged, ``\\n`` endings as in the program).  ``?``
+polls the status at most 5 times a second, for progress and to know when motion has
+really finished (``Idle`` in a report asked after the last ``ok``).  ``error:N`` and
+``ALARM:N`` stop the job, with the program line and the meaning of N.  ``M0`` holds the
+machine: once it reports ``Hold``, the operator is asked and ``~`` resumes.  GRBL says
+``ok`` when a line enters its planner, so the executed count is conservative: lines
+before a dwell or ``M`` synchronisation, or before the last :data:`PLANNER_BLOCKS`
+motion lines; after a stop it is refined by the position where the machine held.
+
+Stopping (the ``cancel`` event, KeyboardInterrupt, a serial fault, a plotter error or a
+stall) stops sending, lifts the tool (HP-GL: the command being sent is finished, then
+``PU;`` and a checkpoint; GRBL: feed hold ``!``, soft reset 0x18, ``$X`` if the reset
+left an alarm, then the program's own preamble, which lifts the tool) and raises
+:class:`StreamStopped` with the executed byte count a resume can start from.
+
+The host waits by blocking reads with a short timeout (:data:`POLL`) or by sleeping
+on the cancel event: it never spins.
+"""
+
+from __future__ import annotations
+
+import bisect
+import re
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable
+
+from foldfab.errors import FoldfabError
+
+if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
+    from foldfab.progress import JobProgress, ProgressEvent
+    from foldfab.program import Program
+
+POLL = 0.05
+"""Seconds a blocking read waits before the sender looks at the cancel event again."""
+XON, XOFF = 0x11, 0x13
+GRBL_RX_BUFFER = 127
+"""Bytes GRBL 1.1 may hold unacknowledged (its 128-byte receive buffer keeps one free)."""
+PLANNER_BLOCKS = 16
+"""GRBL's planner holds 15 motion blocks besides the one executing: lines acknowledged
+after the 16th-last motion line may not have moved the machine yet."""
+STATUS_INTERVAL = 0.2
+"""At most 5 status queries a second."""
+BANNER_WAIT = 2.5
+"""Seconds to wait for the GRBL banner (an Arduino boots in about 2 s), before and after
+the soft reset."""
+
+HPGL_ERRORS = {
+    1: "instruction not recognized",
+    2: "wrong number of parameters",
+    3: "out-of-range parameters",
+    4: "illegal character",
+    5: "unknown character set",
+    6: "position overflow",
+    7: "buffer overflow",
+}
+"""``OE`` answers, as HP and Graphtec document them."""
+
+GRBL_ERRORS = {
+    1: "G-code words consist of a letter and a value. Letter was not found.",
+    2: "Missing the expected G-code word value or numeric value format is not valid.",
+    3: "Grbl '$' system command was not recognized or supported.",
+    4: "Negative value received for an expected positive value.",
+    5: "Homing cycle failure. Homing is not enabled via settings.",
+    6: "Minimum step pulse time must be greater than 3usec.",
+    7: "An EEPROM read failed. Auto-restoring affected EEPROM to default values.",
+    8: "Grbl '$' command cannot be used unless Grbl is IDLE.",
+    9: "G-code commands are locked out during alarm or jog state.",
+    10: "Soft limits cannot be enabled without homing also enabled.",
+    11: "Max characters per line exceeded. Received command line was not executed.",
+    12: "Grbl '$' setting value cause the step rate to exceed the maximum supported.",
+    13: "Safety door detected as opened and door state initiated.",
+    14: "Build info or startup line exceeded EEPROM line length limit. Line not stored.",
+    15: "Jog target exceeds machine travel. Jog command has been ignored.",
+    16: "Jog command has no '=' or contains prohibited g-code.",
+    17: "Laser mode requires PWM output.",
+    20: "Unsupported or invalid g-code command found in block.",
+    21: "More than one g-code command from same modal group found in block.",
+    22: "Feed rate has not yet been set or is undefined.",
+    23: "G-code command in block requires an integer value.",
+    24: "More than one g-code command that requires axis words found in block.",
+    25: "Repeated g-code word found in block.",
+    26: "No axis words found in block for g-code command or current modal state which requires them.",
+    27: "Line number value is invalid.",
+    28: "G-code command is missing a required value word.",
+    29: "G59.x work coordinate systems are not supported.",
+    30: "G53 only allowed with G0 and G1 motion modes.",
+    31: "Axis words found in block when no command or current modal state uses them.",
+    32: "G2 and G3 arcs require at least one in-plane axis word.",
+    33: "Motion command target is invalid.",
+    34: "Arc radius value is invalid.",
+    35: "G2 and G3 arcs require at least one in-plane offset word.",
+    36: "Unused value words found in block.",
+    37: "G43.1 dynamic tool length offset is not assigned to configured tool length axis.",
+    38: "Tool number greater than max supported value.",
+}
+"""GRBL 1.1 ``error:N`` meanings (gnea/grbl doc/csv/error_codes_en_US.csv)."""
+
+GRBL_ALARMS = {
+    1: "Hard limit triggered. Machine position is likely lost; re-homing is highly recommended.",
+    2: "Soft limit: G-code motion target exceeds machine travel. Machine position retained.",
+    3: "Reset while in motion. Machine position is likely lost; re-homing is highly recommended.",
+    4: "Probe fail: the probe is not in the expected initial state.",
+    5: "Probe fail: the probe did not contact the workpiece within the programmed travel.",
+    6: "Homing fail: the active homing cycle was reset.",
+    7: "Homing fail: safety door was opened during homing cycle.",
+    8: "Homing fail: pull off travel failed to clear limit switch.",
+    9: "Homing fail: could not find limit switch within search distances.",
+}
+"""GRBL 1.1 ``ALARM:N`` meanings (gnea/grbl doc/csv/alarm_codes_en_US.csv)."""
+
+Operator = Callable[[str], bool]
+"""Shows a pause message; returns True to continue, False to stop the job."""
+
+
+class StreamStopped(FoldfabError):
+    """The job stopped before its end; the tool was lifted if the plotter could be reached."""
+
+    def __init__(self, message: str, *, acknowledged: int, pauses_done: int, cancelled: bool,
+                 lifted: bool):
+        super().__init__(message)
+        self.acknowledged = acknowledged
+        """Program bytes certainly executed: a resume starts at the first stroke after them."""
+        self.pauses_done = pauses_done
+        self.cancelled = cancelled
+        """Stopped on request (cancel event, Ctrl-C, no at a pause), not by a fault."""
+        self.lifted = lifted
+        self.exit_code = 130 if cancelled else 2
+
+
+@dataclass(frozen=True)
+class StreamResult:
+    """A finished job."""
+
+    sent: int
+    elapsed: float
+    waited: float
+    """Seconds spent waiting for the operator."""
+    pauses: int
+
+
+class _Cancelled(Exception):
+    """The job was stopped on request."""
+
+
+class _Fault(Exception):
+    """The plotter or the link failed.  ``suspect``: a plotter error somewhere since the
+    last checkpoint, so those bytes count as not executed."""
+
+    def __init__(self, message: str, suspect: bool = False):
+        super().__init__(message)
+        self.suspect = suspect
+
+
+def stream(port, program: Program, device: DeviceProfile, *,
+           events: Callable[[ProgressEvent], None] | None = None,
+           cancel: threading.Event | None = None, operator: Operator | None = None,
+           stall_timeout: float = 30.0, progress: JobProgress | None = None) -> StreamResult:
+    """Send ``program`` to the plotter on ``port`` (open, with the profile's settings).
+
+    ``events`` receives :class:`~foldfab.progress.ProgressEvent` objects; setting
+    ``cancel`` (or a KeyboardInterrupt) stops the job safely; ``operator`` answers the
+    program's pauses (without one, a pause stops the job).  ``stall_timeout``: seconds
+    without a sign of progress, beyond the time the estimate expects the plotter to
+    need, before the job is stopped as stalled.  Raises :class:`StreamStopped` if the
+    job did not finish.
+    """
+    if program.protocol != device.protocol:
+        raise FoldfabError(f"a {program.protocol} program cannot run on {device.name} ({device.protocol})")
+    sender = _GrblSender if device.protocol == "gcode" else _HPGLSender
+    return sender(port, program, device, events, cancel, operator, stall_timeout, progress).run()
+
+
+def char_time(port) -> float:
+    """Seconds one byte takes on the wire at the port's settings."""
+    bits = 1 + port.bytesize + (0 if port.parity == "N" else 1) + float(port.stopbits)
+    return bits / float(port.baudrate)
+
+
+class _Sender:
+    """What both protocols share: events, timing, replies, stopping."""
+
+    def __init__(self, port, program, device, events, cancel, operator, stall_timeout, progress):
+        from foldfab.progress import JobProgress
+
+        self.port, self.program, self.device = port, program, device
+        self.data = program.encode()
+        self.events = events or (lambda event: None)
+        self.cancel = cancel or threading.Event()
+        self.operator = operator
+        self.stall_timeout = stall_timeout
+        self.progress = progress or JobProgress(program, device)
+        self.sent = 0
+        """Program bytes written."""
+        self.acked = 0
+        """Program bytes certainly executed."""
+        self.pauses_done = 0
+        self.waited = 0.0
+        self.started = time.monotonic()
+        self.last_event = 0.0
+        self.alive = self.started  # the last sign of progress from the plotter
+        self.char_time = char_time(port)
+        self.wire_free = 0.0  # when the bytes written so far will have left the wire
+        self.inbox = bytearray()
+        self.stopping = False
+
+    def run(self) -> StreamResult:
+        timeout = self.port.timeout
+        self.port.timeout = POLL
+        try:
+            try:
+                self.emit("start")
+                self.send_program()
+            except KeyboardInterrupt:
+                self.stop("stopped by Ctrl-C", cancelled=True)
+            except _Cancelled as exc:
+                self.stop(str(exc), cancelled=True)
+            except _Fault as exc:
+                self.stop(str(exc), suspect=exc.suspect)
+            except OSError as exc:  # serial.SerialException is an OSError
+                self.stop(f"serial link to {self.device.name} failed: {exc}", link_lost=True)
+            self.acked = self.sent
+            self.emit("done")
+            return StreamResult(self.sent, self.elapsed, self.waited, self.pauses_done)
+        finally:
+            try:
+                self.port.timeout = timeout
+            except (OSError, ValueError):
+                pass
+
+    def send_program(self) -> None:
+        raise NotImplementedError
+
+    def lift(self, suspect: bool) -> str:
+        """Lift the tool after a stop; returns a note for the message ("" if all went well)."""
+        raise NotImplementedError
+
+    def stop(self, reason: str, cancelled: bool = False, suspect: bool = False,
+             link_lost: bool = False) -> None:
+        """Stop safely, then raise StreamStopped."""
+        self.stopping = True
+        lifted, note = False, ""
+        if not link_lost:
+            try:
+                note = self.lift(suspect)
+                lifted = True
+            except KeyboardInterrupt:
+                note = "lifting the tool was interrupted: lift it by hand"
+            except (_Fault, _Cancelled, OSError) as exc:
+                note = f"could not lift the tool ({exc}): lift it by hand"
+        message = reason + (f"; {note}" if note else "")
+        self.emit("stopped", message)
+        raise StreamStopped(message, acknowledged=self.acked, pauses_done=self.pauses_done,
+                            cancelled=cancelled, lifted=lifted)
+
+    # -- time and events ---------------------------------------------------------------------
+    @property
+    def elapsed(self) -> float:
+        return time.monotonic() - self.started
+
+    def emit(self, kind: str, message: str = "") -> None:
+        self.last_event = time.monotonic()
+        self.events(self.progress.event(kind, self.acked, self.sent, self.elapsed, self.waited, message))
+
+    def tick(self) -> None:
+        """A progress event, at most 10 a second."""
+        if time.monotonic() - self.last_event >= 0.1:
+            self.emit("progress")
+
+    def patience(self, start: int, end: int) -> float:
+        """Seconds to wait for the plotter to execute program bytes ``start..end``
+        (twice the estimate, plus the stall timeout) before calling it stalled."""
+        done = self.progress.time_done
+        first = self.progress.strokes_done(start)
+        last = min(self.progress.strokes_done(end) + 1, len(done) - 1)
+        return self.stall_timeout + 2.0 * max(done[last] - done[min(first, last)], 0.0)
+
+    def stalled(self, limit: float) -> bool:
+        return time.monotonic() - self.alive > limit
+
+    def check_cancel(self) -> None:
+        if self.cancel.is_set() and not self.stopping:
+            raise _Cancelled("stopped on request")
+
+    def ask_operator(self, message: str) -> None:
+        """Show a pause message and wait for the operator's answer."""
+        self.emit("pause", message)
+        start = time.monotonic()
+        go = self.operator(message) if self.operator is not None else False
+        self.waited += time.monotonic() - start
+        self.alive = time.monotonic()
+        if not go:
+            raise _Cancelled("stopped at a pause" if self.operator else
+                             "stopped at a pause: nobody to answer it")
+        self.pauses_done += 1
+        self.emit("resume", message)
+
+    # -- the port ------------------------------------------------------------------------
+    def write(self, data: bytes) -> None:
+        """Write bytes (never an int: pyserial would send that many zero bytes)."""
+        if not isinstance(data, bytes):
+            raise TypeError(f"write bytes, not {type(data).__name__}")
+        start = max(time.monotonic(), self.wire_free)
+        self.port.write(data)
+        self.wire_free = max(start + len(data) * self.char_time, time.monotonic())
+
+    def on_wire(self) -> float:
+        """Bytes written that, at the line rate, are still on their way."""
+        return max(self.wire_free - time.monotonic(), 0.0) / self.char_time
+
+    def receive(self, wait: bool) -> None:
+        """Move incoming bytes to the inbox; with ``wait``, block up to POLL for the first."""
+        self.check_cancel()
+        waiting = self.port.in_waiting
+        if waiting or wait:
+            data = self.port.read(max(waiting, 1))
+            if data and self.port.in_waiting:
+                data += self.port.read(self.port.in_waiting)
+            self.inbox += self.filter(data)
+
+    def filter(self, data: bytes) -> bytes:
+        """Handle bytes that are not replies (XON/XOFF); return the rest."""
+        return data
+
+    def lines(self) -> list[str]:
+        """Complete reply lines in the inbox (CR or LF terminated, blank ones dropped)."""
+        found = []
+        while (match := re.search(rb"[\r\n]", self.inbox)) is not None:
+            line = bytes(self.inbox[:match.start()]).decode("ascii", "replace").strip()
+            del self.inbox[:match.end()]
+            if line:
+                found.append(line)
+        return found
+
+
+class _HPGLSender(_Sender):
+    """HP-GL with XON/XOFF, RTS/CTS, ESC.B polling or no handshake."""
+
+    def __init__(self, *args):
+        super().__init__(*args)
+        buffer = self.device.buffer
+        self.flow, self.size = buffer.flow_control, buffer.size
+        self.ahead = max(16, min(64, self.size // 16))
+        """Bytes allowed on the wire ahead of the line rate (xonxoff, rtscts): at most the
+        headroom a plotter keeps after signalling stop."""
+        self.driver_flow = bool(self.port.xonxoff if self.flow == "xonxoff" else
+                                self.port.rtscts if self.flow == "rtscts" else False)
+        """The port's driver obeys the handshake (pyserial xonxoff/rtscts)."""
+        self.checked = 0  # program bytes executed at the last checkpoint
+        self.xoff = False
+        self.credit = 0  # escb: bytes that fit by the last answer to ESC.B
+        self.replies: deque[str] = deque()
+        self.ends = [i + 1 for i, byte in enumerate(self.data) if byte == ord(";")]
+
+    def send_program(self) -> None:
+        for mark in sorted(self.program.pauses, key=lambda p: p.offset):
+            self.send_until(mark.offset)
+            self.checkpoint()
+            self.ask_operator(mark.message)
+        self.send_until(len(self.data))
+        self.checkpoint()
+
+    # -- sending --------------------------------------------------------------------------
+    def command_end(self, offset: int, limit: int) -> int:
+        """End of the command containing byte ``offset`` (at most ``limit``)."""
+        index = bisect.bisect_right(self.ends, offset)
+        return min(self.ends[index], limit) if index < len(self.ends) else limit
+
+    def send_until(self, stop: int) -> None:
+        """Send whole commands up to byte ``stop`` as the handshake allows."""
+        while self.sent < stop:
+            self.check_cancel()
+            if self.sent - self.checked >= self.size and self.flow != "none":
+                self.checkpoint()
+            command = self.command_end(self.sent, stop) - self.sent
+            if self.flow == "escb":  # several commands per ESC.B question
+                need = min(max(command, self.size // 8), self.size - 3, stop - self.sent)
+            else:
+                need = min(command, self.ahead if self.flow != "none" else self.size - 3)
+            room = self.room(need)
+            # as many whole commands as fit; a command longer than the room goes in pieces
+            index = bisect.bisect_right(self.ends, min(self.sent + room, stop)) - 1
+            end = self.ends[index] if index >= 0 and self.ends[index] > self.sent else self.sent + room
+            end = min(end, stop)
+            while True:
+                self.write(self.data[self.sent:end])
+                self.credit -= end - self.sent
+                self.sent = end
+                if self.data[end - 1] == ord(";") or end == stop:
+                    break  # a command is never left half sent (a stop appends PU;)
+                rest = self.command_end(self.sent, stop) - self.sent
+                end = self.sent + min(self.room(rest), rest)
+            self.update_acked()
+            self.tick()
+
+    def room(self, need: int) -> int:
+        """Block until at least ``need`` bytes may be sent; return how many may."""
+        if self.flow == "escb":
+            return self.escb_room(need)
+        if self.flow == "none":  # one buffer between checkpoints
+            if self.checked + self.size - 3 - self.sent < need:
+                self.checkpoint()
+            return self.checked + self.size - 3 - self.sent
+        want = max(min(need, self.ahead), self.ahead // 2)  # no dribbling a byte at a time
+        self.alive = time.monotonic()
+        while True:
+            if not self.driver_flow:  # else the port's driver holds writes and eats XON/XOFF
+                self.receive(wait=False)
+            held = self.xoff if self.flow == "xonxoff" else not self.port.cts
+            if not held:
+                on_wire = self.on_wire()
+                if on_wire <= self.ahead - want:
+                    return int(self.ahead - on_wire)
+                self.sleep((on_wire - (self.ahead - want)) * self.char_time)
+                continue
+            limit = self.patience(self.acked, self.sent + self.ahead)
+            if self.stalled(limit):
+                signal = "no XON" if self.flow == "xonxoff" else "CTS low"
+                raise _Fault(f"{self.device.name} stalled: {signal} for {limit:.0f} s "
+                             "(paper jam, pause button, or the plotter hung?)")
+            self.receive(wait=True)  # a poll interval: XON comes as a byte, CTS is polled
+
+    def sleep(self, seconds: float) -> None:
+        """Sleep on the cancel event (wakes at once on a cancel)."""
+        self.check_cancel()
+        if seconds > 0 and not self.stopping:
+            self.cancel.wait(min(seconds, POLL))
+        elif seconds > 0:
+            time.sleep(min(seconds, POLL))
+
+    def escb_room(self, need: int) -> int:
+        """Ask ``ESC.B`` until the plotter reports at least ``need`` bytes free."""
+        best, since = -1, time.monotonic()
+        while self.credit < need:
+            self.credit = self.ask(b"\x1b.B", "ESC.B (free buffer space)", self.stall_timeout)
+            self.acked = max(self.acked, self.sent - (self.size - self.credit))
+            if self.credit >= need:
+                break
+            if self.credit > best:
+                best, since = self.credit, time.monotonic()
+            limit = self.patience(self.acked, self.sent)
+            if time.monotonic() - since > limit:
+                raise _Fault(f"{self.device.name} stalled: its buffer has not drained for "
+                             f"{limit:.0f} s (paper jam, pause button, or the plotter hung?)")
+            self.tick()
+            self.receive(wait=True)  # a poll interval; replies do not come unasked
+        return self.credit
+
+    def update_acked(self) -> None:
+        """Executed bytes as far as known without asking (see the module docstring)."""
+        if self.flow in ("xonxoff", "rtscts"):
+            self.acked = max(self.acked, self.sent - self.size - self.ahead)
+        self.acked = max(self.acked, self.checked)
+
+    # -- replies ---------------------------------------------------------------------------
+    def filter(self, data: bytes) -> bytes:
+        if XON in data or XOFF in data:
+            for byte in data:
+                if byte in (XON, XOFF):
+                    self.xoff = byte == XOFF
+                    self.alive = time.monotonic()
+            data = data.replace(bytes([XON]), b"").replace(bytes([XOFF]), b"")
+        return data
+
+    def ask(self, command: bytes, what: str, timeout: float) -> int:
+        """Send an output instruction; return its decimal answer."""
+        self.write(command)
+        deadline = time.monotonic() + timeout + self.on_wire() * self.char_time
+        while not self.replies:
+            self.replies.extend(self.lines())
+            if self.replies:
+                break
+            if time.monotonic() > deadline:
+                raise _Fault(f"{self.device.name} did not answer {what} within {timeout:.0f} s: "
+                             "is it switched on, connected, and set to the profile's serial settings?")
+            self.receive(wait=True)
+        line = self.replies.popleft()
+        number = line.split(",")[0].strip()
+        if not number.isdigit():
+            raise _Fault(f"{self.device.name} answered {what} with {line!r}, not a number "
+                         "(line noise, or the wrong serial settings?)")
+        return int(number)
+
+    def checkpoint(self) -> None:
+        """Wait until the plotter has executed everything sent and check its error register."""
+        if self.sent == self.checked and self.sent:
+            return
+        if self.flow in ("xonxoff", "rtscts", "escb"):
+            self.room(3)
+        error = self.ask(b"OE;", "OE (output error)", self.patience(self.checked, self.sent))
+        self.credit = self.size  # the buffer is empty now
+        if error:
+            meaning = HPGL_ERRORS.get(error, "unknown error")
+            raise _Fault(f"{self.device.name} reports HP-GL error {error} ({meaning}) in program bytes "
+                         f"{self.checked}..{self.sent} (line noise, or a command it does not take?)",
+                         suspect=True)
+        self.acked = self.checked = self.sent
+        self.tick()
+
+    def lift(self, suspect: bool) -> str:
+        """Finish the command being sent, then ``PU;`` and a checkpoint."""
+        if suspect:  # where in the last checkpoint's window the error struck is unknown
+            self.acked = self.checked
+        end = self.command_end(max(self.sent - 1, 0), len(self.data))
+        if 0 < self.sent < end and self.data[self.sent - 1] != ord(";"):
+            self.send_until(end)
+        if self.flow in ("xonxoff", "rtscts", "escb"):
+            self.room(3)
+        self.write(b"PU;")
+        error = self.ask(b"OE;", "OE (output error)", self.patience(self.acked, self.sent))
+        if suspect or error:
+            return f"the plotter also reports HP-GL error {error}" if error and not suspect else ""
+        self.acked = self.checked = self.sent
+        return ""
+
+
+@dataclass
+class _Line:
+    """One program line: bytes ``start..end`` (``data`` ends in ``\\n``), numbered from 1."""
+
+    start: int
+    end: int
+    number: int
+    data: bytes
+    motion: bool
+    """It moves the machine (X, Y or Z words): it may sit in GRBL's planner."""
+    sync: bool
+    """GRBL executes it only once the planner is empty (G4, M0, M2, M3, M5, M30)."""
+
+
+_STATUS = re.compile(r"<([A-Za-z]+)(?::(\d+))?(.*)>")
+_FIELD = re.compile(r"\|(MPos|WPos|WCO):([-\d.]+),([-\d.]+),([-\d.]+)")
+
+
+class _GrblSender(_Sender):
+    """GRBL 1.1: banner, character counting, status polling, M0 holds."""
+
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.lines_ = self.split()
+        self.pending: deque[_Line] = deque()  # sent, not answered
+        self.in_rx = 0  # bytes of pending lines
+        self.answered = 0  # program lines answered ok
+        self.ceiling = len(self.data)  # executed can never pass an unexecuted (error) line
+        self.state, self.substate = "", None
+        self.machine_position: tuple[float, float, float] | None = None
+        self.position_kind = "MPos"
+        self.wco = (0.0, 0.0, 0.0)
+        self.last_query = 0.0
+        self.query_answered = 0  # lines answered when the outstanding "?" was sent
+        self.querying = False
+        self.report: tuple[str, int] | None = None  # (state, lines answered when it was asked)
+        self.banner = ""
+        self.pause_ends = {p.offset: p for p in self.program.pauses}
+        self.moves = [i for i, line in enumerate(self.lines_) if line.motion]
+        self.syncs = [i for i, line in enumerate(self.lines_) if line.sync]
+
+    def split(self) -> list[_Line]:
+        """The program's lines with their byte ranges and what GRBL does with them."""
+        from foldfab.interpret import read_gcode_line
+
+        lines, start = [], 0
+        text = self.program.text
+        for number, raw in enumerate(text.split("\n"), 1):
+            if start >= len(text):
+                break
+            end = min(start + len(raw) + 1, len(text))
+            data = raw.encode("ascii") + b"\n"
+            if len(data) > GRBL_RX_BUFFER:
+                raise FoldfabError(f"program line {number} is {len(data)} bytes long; GRBL takes "
+                                   f"lines of at most {GRBL_RX_BUFFER} bytes")
+            words = read_gcode_line(raw, start).words
+            letters = {letter for letter, _ in words}
+            sync = any((letter, value) in (("G", 4), ("M", 0), ("M", 2), ("M", 3), ("M", 5), ("M", 30))
+                       for letter, value in words)
+            lines.append(_Line(start, end, number, data, bool(letters & {"X", "Y", "Z"}), sync))
+            start = end
+        return lines
+
+    # -- replies ---------------------------------------------------------------------------
+    def pump(self) -> None:
+        """Ask the status when due, wait up to POLL for replies, handle them."""
+        now = time.monotonic()
+        if now - self.last_query >= STATUS_INTERVAL and (not self.querying or now - self.last_query > 1.0):
+            self.write(b"?")
+            self.last_query, self.querying, self.query_answered = now, True, self.answered
+        self.receive(wait=True)
+        for reply in self.lines():
+            self.handle(reply)
+        self.tick()
+
+    def handle(self, reply: str) -> None:
+        """Act on one line from GRBL."""
+        if reply == "ok":
+            if self.pending:
+                line = self.pending.popleft()
+                self.in_rx -= len(line.data)
+                if line.number:
+                    self.answered += 1
+                self.alive = time.monotonic()
+                self.update_acked()
+        elif reply.startswith("error:"):
+            line = self.pending.popleft() if self.pending else None
+            if line is not None:
+                self.in_rx -= len(line.data)
+            code = reply[6:].strip()
+            meaning = GRBL_ERRORS.get(int(code), "unknown error") if code.isdigit() else "unknown error"
+            where = f" at program line {line.number} ({line.data.decode().strip()!r})" \
+                if line is not None and line.number else ""
+            if line is not None and line.number:
+                self.ceiling = min(self.ceiling, line.start)
+            if not self.stopping:
+                raise _Fault(f"GRBL error {code}{where}: {meaning}")
+        elif reply.startswith("ALARM:"):
+            code = reply[6:].strip()
+            meaning = GRBL_ALARMS.get(int(code), "unknown alarm") if code.isdigit() else "unknown alarm"
+            self.state = "Alarm"
+            if not self.stopping:
+                raise _Fault(f"GRBL alarm {code}: {meaning}")
+        elif reply.startswith("<"):
+            self.status(reply)
+        elif reply.startswith("Grbl "):
+            self.banner = reply
+            if not self.stopping:
+                raise _Fault(f"GRBL reset itself during the job ({reply!r}): the lines it held are lost")
+        elif not reply.startswith("["):
+            raise _Fault(f"unexpected reply from GRBL: {reply!r} (line noise, or the wrong baud rate?)")
+
+    def status(self, reply: str) -> None:
+        match = _STATUS.match(reply)
+        if not match:
+            raise _Fault(f"unreadable status report from GRBL: {reply!r}")
+        if (match.group(1), match.group(2)) != (self.state, self.substate):
+            self.alive = time.monotonic()
+        self.state, self.substate = match.group(1), match.group(2)
+        for kind, *values in _FIELD.findall(match.group(3)):
+            point = tuple(float(v) for v in values)
+            if kind == "WCO":
+                self.wco = point
+            else:
+                if point != self.machine_position:
+                    self.alive = time.monotonic()
+                self.machine_position, self.position_kind = point, kind
+        if self.querying:
+            self.querying = False
+            self.report = (self.state, self.query_answered)
+        if self.idle():
+            self.acked = max(self.acked, min(self.lines_[self.answered - 1].end, self.ceiling)
+                             if self.answered else 0)
+
+    def idle(self) -> bool:
+        """A report asked after every line was answered says Idle: motion has finished."""
+        return not self.pending and self.report == ("Idle", self.answered)
+
+    def work_position(self) -> tuple[float, float, float] | None:
+        if self.machine_position is None or self.position_kind == "WPos":
+            return self.machine_position
+        return tuple(p - o for p, o in zip(self.machine_position, self.wco))
+
+    def update_acked(self) -> None:
+        """Lines before a synchronising line, or before the planner's reach, are executed."""
+        moves = bisect.bisect_left(self.moves, self.answered)  # motion lines answered
+        safe = self.moves[moves - PLANNER_BLOCKS] if moves >= PLANNER_BLOCKS else 0
+        syncs = bisect.bisect_left(self.syncs, self.answered)
+        if syncs:
+            safe = max(safe, self.syncs[syncs - 1])
+        offset = self.lines_[safe].start if safe < len(self.lines_) else len(self.data)
+        self.acked = max(self.acked, min(offset, self.ceiling))
+
+    def wait(self, condition: Callable[[], bool], what: str, patience: float) -> None:
+        """Pump replies until ``condition``; a _Fault after ``patience`` s without progress."""
+        self.alive = time.monotonic()
+        while not condition():
+            if self.stalled(patience):
+                raise _Fault(f"GRBL stalled: no progress for {patience:.0f} s while waiting for "
+                             f"{what} (on hold, jammed or hung?)")
+            self.pump()
+
+    # -- the job ---------------------------------------------------------------------------
+    def connect(self) -> None:
+        """Wait for the banner; if none comes, a soft reset brings one (CONVENTIONS.md)."""
+        for attempt in range(2):
+            deadline = time.monotonic() + BANNER_WAIT
+            while not self.banner and time.monotonic() < deadline:
+                self.receive(wait=True)
+                self.banner = next((r for r in self.lines() if r.startswith("Grbl ")), "")
+            if self.banner or attempt:
+                break
+            self.write(b"\x18")
+        if not self.banner:
+            raise _Fault(f"no GRBL banner from {self.device.name}, even after a soft reset (0x18): "
+                         "is it a GRBL 1.1 board, switched on, at the profile's baud rate?")
+        if not self.banner.startswith("Grbl 1.1"):
+            raise FoldfabError(f"{self.device.name} answers {self.banner.split('[')[0].strip()!r}; "
+                               "foldfab speaks GRBL 1.1")
+        self.stopping = True  # the banner may come with [MSG:...] and ALARM lines
+        try:
+            self.wait(lambda: self.report is not None, "a status report", self.stall_timeout)
+        finally:
+            self.stopping = False
+        if self.state == "Alarm":
+            raise FoldfabError(f"{self.device.name} is in alarm state: home it ($H) or unlock it "
+                               "($X), then plot again")
+
+    def send_program(self) -> None:
+        self.connect()
+        for index, line in enumerate(self.lines_):
+            self.check_cancel()
+            self.wait(lambda: self.in_rx + len(line.data) <= GRBL_RX_BUFFER,
+                      "room in its receive buffer", self.patience(self.acked, line.end))
+            self.write(line.data)
+            self.pending.append(line)
+            self.in_rx += len(line.data)
+            self.sent = line.end
+            pause = self.pause_ends.get(line.end)
+            if pause is not None:
+                self.hold_for(pause.message, index)
+        self.wait(self.idle, "the end of motion", self.patience(self.acked, len(self.data)))
+
+    def hold_for(self, message: str, index: int) -> None:
+        """M0 was sent: once GRBL holds there (motion done), ask the operator, then ``~``."""
+        self.wait(lambda: len(self.pending) == 1 and self.report is not None and
+                  self.report[0] == "Hold" and self.substate in (None, "0") and
+                  self.report[1] == self.answered,
+                  "the M0 pause", self.patience(self.acked, self.sent))
+        self.acked = max(self.acked, self.lines_[index].start)
+        self.ask_operator(message)
+        self.write(b"~")
+        self.wait(lambda: not self.pending, "the end of the pause", self.stall_timeout)
+
+    def lift(self, suspect: bool) -> str:
+        """Feed hold, soft reset, then the program's preamble (units, modes, tool up)."""
+        self.write(b"!")
+        self.report = None
+        try:
+            self.wait(lambda: self.report is not None and self.report[0] in ("Hold", "Idle", "Alarm"),
+                      "the feed hold", min(self.stall_timeout, 10.0))
+            self.refine_acked()
+        except _Fault:
+            pass
+        self.banner = ""
+        self.write(b"\x18")
+        deadline = time.monotonic() + 2 * BANNER_WAIT
+        while not self.banner and time.monotonic() < deadline:
+            self.receive(wait=True)
+            for reply in self.lines():
+                self.handle(reply)
+        if not self.banner:
+            raise _Fault("GRBL did not answer the soft reset")
+        self.pending.clear()
+        self.in_rx = 0
+        self.report = None
+        self.wait(lambda: self.report is not None, "a status report", self.stall_timeout)
+        note = ""
+        if self.state == "Alarm":
+            self.send_line(b"$X\n")
+            note = ("GRBL raised an alarm at the reset and was unlocked ($X) to lift the tool; "
+                    "home it before resuming if its position may be lost")
+        for raw in self.program.text[:self.program.sections[0].offset].split("\n"):
+            from foldfab.interpret import read_gcode_line
+
+            if read_gcode_line(raw).words:
+                self.send_line(raw.encode("ascii") + b"\n")
+        return note
+
+    def send_line(self, data: bytes) -> None:
+        """Send one line that is not part of the program and wait for its answer."""
+        self.write(data)
+        self.pending.append(_Line(self.sent, self.sent, 0, data, False, False))
+        self.in_rx += len(data)
+        self.wait(lambda: not self.pending, repr(data.decode().strip()), self.stall_timeout)
+
+    def refine_acked(self) -> None:
+        """After a hold: the first answered line whose move passes through the held position
+        is the one that was executing; every line before it was executed."""
+        from foldfab.interpret import GcodeMachine, read_gcode_line
+
+        held = self.work_position()
+        first = next((i for i, line in enumerate(self.lines_) if line.end > self.acked), None)
+        if held is None or first is None or first >= self.answered:
+            return
+        machine = GcodeMachine(self.device, self.device.frame(self.device.sheet), None)
+        before = None
+        for i, line in enumerate(self.lines_[:self.answered]):
+            machine.apply(read_gcode_line(line.data.decode("ascii")[:-1], line.start), line.end)
+            after = (*machine.position, machine.z if not machine.servo else 0.0)
+            if i >= first and before is not None and _on_segment(held, before, after):
+                self.acked = max(self.acked, min(line.start, self.ceiling))
+                return
+            before = after
+
+
+def _on_segment(point, a, b, tolerance: float = 0.01) -> bool:
+    """Is ``point`` on the segment ``a``..``b`` (3D, within ``tolerance``)?"""
+    d = [e - s for s, e in zip(a, b)]
+    length2 = sum(c * c for c in d)
+    t = 0.0 if length2 == 0 else max(0.0, min(1.0, sum((p - s) * c for p, s, c in zip(point, a, d)) / length2))
+    return sum((s + t * c - p) ** 2 for p, s, c in zip(point, a, d)) <= tolerance ** 2
