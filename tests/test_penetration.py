@@ -44,19 +44,35 @@ def _segment_crosses(p, q, tri, margin, depth=0.0):
     return u > margin and v > margin and u + v < 1 - margin and margin < t < 1 - margin
 
 
+def _straddles(tri, other, depth):
+    """``other`` reaches at least ``depth`` mm to both sides of ``tri``'s plane."""
+    n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+    side = (other - tri[0]) @ (n / np.linalg.norm(n))
+    return side.max() >= depth and side.min() <= -depth
+
+
 def brute_force(cp, margin, depth=0.0):
-    """Face pairs that share no vertex in 3D and whose triangles cross (an edge through the other)."""
+    """Face pairs with no vertices within the library's tolerance whose triangles cross.
+
+    A crossing is an edge through the other triangle's interior (barycentric ``margin``);
+    with ``depth`` > 0 each triangle must also reach ``depth`` mm to both sides of the
+    other's plane, so a hair's poke-through counts as touching.
+    """
     tris, owner = cp.triangles()
     v = cp.vertices_3d
-    keys = [tuple(np.round(p / 1e-7).astype(int)) for p in v]
-    faces_keys = [{keys[i] for i in f} for f in cp.faces]
+    eps = 1e-6 * float(np.ptp(v, axis=0).max())
     found = set()
     for i in range(len(tris)):
         for j in range(i + 1, len(tris)):
             fa, fb = int(owner[i]), int(owner[j])
-            if fa == fb or faces_keys[fa] & faces_keys[fb] or cp.tab_faces[fa] or cp.tab_faces[fb]:
+            if fa == fb or cp.tab_faces[fa] or cp.tab_faces[fb]:
+                continue
+            gap = np.linalg.norm(v[cp.faces[fa]][:, None] - v[cp.faces[fb]][None, :], axis=-1).min()
+            if gap <= eps:
                 continue
             A, B = v[tris[i]], v[tris[j]]
+            if depth and not (_straddles(A, B, depth) and _straddles(B, A, depth)):
+                continue
             if any(_segment_crosses(A[k], A[(k + 1) % 3], B, margin, depth) for k in range(3)) or \
                any(_segment_crosses(B[k], B[(k + 1) % 3], A, margin, depth) for k in range(3)):
                 found.add((min(fa, fb), max(fa, fb)))
