@@ -2,7 +2,7 @@
 
 Writes docs/img/*.svg: crease patterns (foldfab's own SVG writer) and shaded 3D
 views of the folded models (orthographic, painter's algorithm, one colour per
-paper side), plus the dry-run plotter preview when fabrication is available.
+paper side), plus the dry-run plotter preview of the Figure 8 (a) job on the Graphtec profile.
 """
 
 from __future__ import annotations
@@ -13,7 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from foldfab.design import load_design
+from foldfab.devices import load_device
+from foldfab.fabrication import fabricate
 from foldfab.formats import svg
+from foldfab.interpret import interpret
+from foldfab.preview import render_preview
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "docs" / "img"
@@ -61,6 +65,12 @@ def main() -> None:
         (OUT / f"{job}-cp.svg").write_text(text)
         (OUT / f"{job}-3d.svg").write_text(render_3d(design.crease_pattern))
         print("wrote", OUT / f"{job}-cp.svg", OUT / f"{job}-3d.svg", file=sys.stderr)
+    design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
+    device = load_device("graphtec-ce6000")
+    fab = fabricate(design, device)
+    preview = render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan)
+    (OUT / "hexagon-fig8a-preview.svg").write_text(preview)
+    print("wrote", OUT / "hexagon-fig8a-preview.svg", file=sys.stderr)
 
 
 if __name__ == "__main__":
