@@ -50,6 +50,7 @@ on the cancel event: it never spins.
 from __future__ import annotations
 
 import bisect
+import errno
 import re
 import threading
 import time
@@ -272,8 +273,8 @@ class _Sender:
              link_lost: bool = False) -> None:
         """Stop safely, then raise StreamStopped."""
         self.stopping = True
-        lifted, note = False, ""
-        if not link_lost:
+        lifted, note = self.sent == 0, ""  # nothing sent: the tool was never lowered
+        if not link_lost and not lifted:
             try:
                 note = self.lift(suspect)
                 lifted = True
@@ -318,13 +319,14 @@ class _Sender:
     def ask_operator(self, message: str) -> None:
         """Show a pause message and wait for the operator's answer."""
         self.emit("pause", message)
+        if self.operator is None:
+            raise _Fault(f"stopped at a pause: nobody to answer it ({message})")
         start = time.monotonic()
-        go = self.operator(message) if self.operator is not None else False
+        go = self.operator(message)
         self.waited += time.monotonic() - start
         self.alive = time.monotonic()
         if not go:
-            raise _Cancelled("stopped at a pause" if self.operator else
-                             "stopped at a pause: nobody to answer it")
+            raise _Cancelled("stopped at a pause by the operator")
         self.pauses_done += 1
         self.emit("resume", message)
 
@@ -373,12 +375,14 @@ class _HPGLSender(_Sender):
         super().__init__(*args)
         buffer = self.device.buffer
         self.flow, self.size = buffer.flow_control, buffer.size
-        self.ahead = max(16, min(64, self.size // 16))
-        """Bytes allowed on the wire ahead of the line rate (xonxoff, rtscts): at most the
-        headroom a plotter keeps after signalling stop."""
+        self.ahead = max(8, min(64, self.size // 32))
+        """Bytes allowed on the wire ahead of the line rate (xonxoff, rtscts).  Twice this
+        (what is on the wire, and one more write before XOFF is read) must fit in the
+        headroom a plotter keeps after signalling stop (HP: 1/8 of the buffer or more)."""
         self.driver_flow = bool(self.port.xonxoff if self.flow == "xonxoff" else
                                 self.port.rtscts if self.flow == "rtscts" else False)
         """The port's driver obeys the handshake (pyserial xonxoff/rtscts)."""
+        self.cts_line = True  # the port can report CTS
         self.checked = 0  # program bytes executed at the last checkpoint
         self.xoff = False
         self.credit = 0  # escb: bytes that fit by the last answer to ESC.B
@@ -439,7 +443,7 @@ class _HPGLSender(_Sender):
         while True:
             if not self.driver_flow:  # else the port's driver holds writes and eats XON/XOFF
                 self.receive(wait=False)
-            held = self.xoff if self.flow == "xonxoff" else not self.port.cts
+            held = self.xoff if self.flow == "xonxoff" else not self.clear_to_send()
             if not held:
                 on_wire = self.on_wire()
                 if on_wire <= self.ahead - want:
@@ -452,6 +456,21 @@ class _HPGLSender(_Sender):
                 raise _Fault(f"{self.device.name} stalled: {signal} for {limit:.0f} s "
                              "(paper jam, pause button, or the plotter hung?)")
             self.receive(wait=True)  # a poll interval: XON comes as a byte, CTS is polled
+
+    def clear_to_send(self) -> bool:
+        """CTS; a port without modem lines (a pseudo-terminal) leaves it to the driver."""
+        if not self.cts_line:
+            return True
+        try:
+            return self.port.cts
+        except OSError as exc:
+            if exc.errno not in (errno.ENOTTY, errno.EINVAL):
+                raise
+            if not self.driver_flow:
+                raise _Fault(f"{self.port.port} has no CTS line to read: open it with RTS/CTS "
+                             "flow control (--rtscts) so that its driver holds the data") from None
+            self.cts_line = False
+            return True
 
     def sleep(self, seconds: float) -> None:
         """Sleep on the cancel event (wakes at once on a cancel)."""
@@ -537,9 +556,11 @@ class _HPGLSender(_Sender):
         end = self.command_end(max(self.sent - 1, 0), len(self.data))
         if 0 < self.sent < end and self.data[self.sent - 1] != ord(";"):
             self.send_until(end)
-        if self.flow in ("xonxoff", "rtscts", "escb"):
-            self.room(3)
-        self.write(b"PU;")
+        try:
+            if self.flow in ("xonxoff", "rtscts", "escb"):
+                self.room(3)
+        finally:  # a plotter that does not answer still gets the PU; to execute when it can
+            self.write(b"PU;")
         error = self.ask(b"OE;", "OE (output error)", self.patience(self.acked, self.sent))
         if suspect or error:
             return f"the plotter also reports HP-GL error {error}" if error and not suspect else ""
@@ -582,6 +603,7 @@ class _GrblSender(_Sender):
         self.last_query = 0.0
         self.query_answered = 0  # lines answered when the outstanding "?" was sent
         self.querying = False
+        self.unanswered_since: float | None = None  # the first "?" still without a report
         self.report: tuple[str, int] | None = None  # (state, lines answered when it was asked)
         self.banner = ""
         self.pause_ends = {p.offset: p for p in self.program.pauses}
@@ -617,6 +639,12 @@ class _GrblSender(_Sender):
         if now - self.last_query >= STATUS_INTERVAL and (not self.querying or now - self.last_query > 1.0):
             self.write(b"?")
             self.last_query, self.querying, self.query_answered = now, True, self.answered
+            if self.unanswered_since is None:
+                self.unanswered_since = now
+        elif (self.unanswered_since is not None and not self.stopping
+              and now - self.unanswered_since > self.stall_timeout):
+            raise _Fault(f"GRBL stopped answering: no status report for {self.stall_timeout:g} s "
+                         "(hung, or the cable is loose?)")
         self.receive(wait=True)
         for reply in self.lines():
             self.handle(reply)
@@ -675,7 +703,7 @@ class _GrblSender(_Sender):
                     self.alive = time.monotonic()
                 self.machine_position, self.position_kind = point, kind
         if self.querying:
-            self.querying = False
+            self.querying, self.unanswered_since = False, None
             self.report = (self.state, self.query_answered)
         if self.idle():
             self.acked = max(self.acked, min(self.lines_[self.answered - 1].end, self.ceiling)
@@ -767,7 +795,7 @@ class _GrblSender(_Sender):
         self.report = None
         try:
             self.wait(lambda: self.report is not None and self.report[0] in ("Hold", "Idle", "Alarm"),
-                      "the feed hold", min(self.stall_timeout, 10.0))
+                      "the feed hold", self.stall_timeout + 2 * BANNER_WAIT)
             self.refine_acked()
         except _Fault:
             pass

@@ -1,0 +1,422 @@
+"""Streaming engines against the simulated plotters (sim:// and a real pseudo-terminal).
+
+The simulators speak the devices' wire protocols and lose what overruns their receive
+buffers, so "the recorded strokes equal the program's strokes, in order, and no byte
+was lost" is the test of a sender.  :class:`Spy` wraps every port: it fails a test on a
+write of anything but ``bytes`` and counts GRBL's unacknowledged bytes.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+from collections import deque
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from foldfab.design import load_design
+from foldfab.devices import load_device
+from foldfab.fabrication import fabricate, parse_fabrication
+from foldfab.interpret import interpret
+from foldfab.progress import JobProgress
+from foldfab.stream import GRBL_RX_BUFFER, StreamStopped, stream
+from foldfab.transport import open_port
+
+ROOT = Path(__file__).resolve().parent.parent
+JOBS = sorted((ROOT / "jobs").glob("*.toml"))
+FLOWS = {"hp7475a": "escb", "graphtec-ce6000": "rtscts", "roland-gx24": "none", "grbl": "grbl"}
+SIM = "sim://?time=instant&sheet=A3"
+FAST_BAUD = 115200
+"""Host and simulated wire run at this rate where a test is about correctness, not timing:
+the XON/XOFF and RTS/CTS senders pace their writes at the line rate in wall time."""
+
+
+def xonxoff_profile(folder: Path) -> Path:
+    """The HP 7475A set to XON/XOFF (its other handshake), as a profile file."""
+    text = (ROOT / "devices" / "hp7475a.toml").read_text()
+    text = text.replace('name = "hp7475a"', 'name = "hp7475a-xonxoff"')
+    text = text.replace("xonxoff = false", "xonxoff = true")
+    text = re.sub(r'flow_control = "escb".*', 'flow_control = "xonxoff"', text)
+    path = folder / "hp7475a-xonxoff.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="session")
+def xonxoff_device(tmp_path_factory):
+    return str(xonxoff_profile(tmp_path_factory.mktemp("devices")))
+
+
+DEVICE_NAMES = [*FLOWS, "xonxoff"]
+
+
+def device_for(name: str, xonxoff_device: str):
+    return load_device(xonxoff_device if name == "xonxoff" else name)
+
+
+@functools.lru_cache(maxsize=None)
+def fabricated(job: str, device: str, strategy: str = "force"):
+    """The fabrication of ``job`` on ``device`` (A3, scale 0.4: every example job fits)."""
+    spec = parse_fabrication({"sheet": "A3", "margin": 5, "scale": 0.4, "strategy": strategy}, "test")
+    return fabricate(load_design(job), load_device(device), spec)
+
+
+def strokes_of(program, device):
+    return interpret(program, device, (297.0, 420.0)).strokes
+
+
+def same_strokes(got, want, atol: float = 1e-6) -> bool:
+    """Same strokes in the same order: points, tool, force, speed."""
+    return len(got) == len(want) and all(
+        a.points.shape == b.points.shape and np.allclose(a.points, b.points, atol=atol)
+        and (a.pen, a.force, a.pen_down) == (b.pen, b.force, b.pen_down)
+        and a.speed == pytest.approx(b.speed) for a, b in zip(got, want))
+
+
+class Spy:
+    """A port that checks every write is ``bytes`` and counts GRBL's unacknowledged bytes."""
+
+    def __init__(self, port, grbl: bool = False):
+        object.__setattr__(self, "_port", port)
+        object.__setattr__(self, "_grbl", grbl)
+        object.__setattr__(self, "written", bytearray())
+        object.__setattr__(self, "_lines", deque())
+        object.__setattr__(self, "_replies", bytearray())
+        object.__setattr__(self, "max_in_flight", 0)
+
+    def __getattr__(self, name):
+        return getattr(self._port, name)
+
+    def __setattr__(self, name, value):
+        setattr(self._port, name, value)
+
+    def write(self, data):
+        assert type(data) is bytes, f"wrote {type(data).__name__}, not bytes"
+        self.written.extend(data)
+        if self._grbl:
+            if data == b"\x18":
+                self._lines.clear()
+            elif data not in (b"?", b"!", b"~"):
+                self._lines.extend(len(line) + 1 for line in data.split(b"\n")[:-1])
+                object.__setattr__(self, "max_in_flight", max(self.max_in_flight, sum(self._lines)))
+        return self._port.write(data)
+
+    def read(self, size=1):
+        data = self._port.read(size)
+        if self._grbl:
+            self._replies.extend(data)
+            *lines, rest = bytes(self._replies).split(b"\r\n")
+            self._replies[:] = rest
+            for line in lines:
+                if (line == b"ok" or line.startswith(b"error:")) and self._lines:
+                    self._lines.popleft()
+        return data
+
+
+def sim_port(device, options: str = "", baudrate: int | None = None, **kw) -> Spy:
+    port = open_port(f"{SIM}&{options}" if options else SIM, device, baudrate=baudrate, **kw)
+    return Spy(port, grbl=device.protocol == "gcode")
+
+
+def run(port, program, device, **kw):
+    """Stream and collect the progress events."""
+    events = []
+    result = stream(port, program, device, events=events.append, operator=lambda message: True, **kw)
+    return result, events
+
+
+# --- every job on every device type ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", DEVICE_NAMES)
+@pytest.mark.parametrize("job", JOBS, ids=[j.stem for j in JOBS])
+def test_every_job_every_device_draws_the_program(job, name, xonxoff_device):
+    """The simulator draws exactly the program's strokes, in order, and loses nothing."""
+    device = device_for(name, xonxoff_device)
+    fab = fabricated(str(job), xonxoff_device if name == "xonxoff" else name)
+    port = sim_port(device, baudrate=FAST_BAUD)
+    result, events = run(port, fab.program, device)
+    sim = port.simulator
+    assert sim.stats.bytes_lost == 0 and not sim.stats.errors
+    assert same_strokes(sim.strokes, strokes_of(fab.program, device))
+    assert result.sent == len(fab.program.text)
+    assert port.max_in_flight <= GRBL_RX_BUFFER
+    acked = [e.acknowledged for e in events]
+    assert acked == sorted(acked) and events[0].kind == "start" and events[-1].kind == "done"
+    assert events[-1].fraction == 1.0 and events[-1].strokes_done == events[-1].strokes_total
+
+
+@pytest.mark.parametrize("name", DEVICE_NAMES)
+def test_two_sided_job_pauses_for_the_flip_and_is_answered(name, xonxoff_device):
+    """The flip pause is asked once, after everything before it was executed; without an
+    operator the job stops there, safely."""
+    device = device_for(name, xonxoff_device)
+    fab = fabricated(str(ROOT / "jobs/star.toml"), xonxoff_device if name == "xonxoff" else name,
+                     "two-sided")
+    want = strokes_of(fab.program, device)
+    (pause,) = fab.program.pauses
+    before = sum(s.end <= pause.offset for s in want)
+    port = sim_port(device, baudrate=FAST_BAUD)
+    asked = []
+
+    def operator(message):
+        asked.append((message, len(port.simulator.strokes)))
+        return True
+
+    stream(port, fab.program, device, operator=operator)
+    assert asked == [(pause.message, before)]
+    assert same_strokes(port.simulator.strokes, want)
+
+    port = sim_port(device, baudrate=FAST_BAUD)
+    with pytest.raises(StreamStopped, match="nobody to answer") as stop:
+        stream(port, fab.program, device)
+    assert stop.value.lifted and not stop.value.cancelled
+    assert len(port.simulator.strokes) == before
+    assert JobProgress(fab.program, device).strokes_done(stop.value.acknowledged) == before
+
+
+# --- a naive sender loses data, foldfab does not ---------------------------------------------
+
+NAIVE_CASES = ["xonxoff", "xonxoff-by-foldfab", "rtscts", "escb", "grbl", "none"]
+
+
+def naive_and_careful(case: str, xonxoff_device: str):
+    name = {"xonxoff": "xonxoff", "xonxoff-by-foldfab": "xonxoff", "rtscts": "graphtec-ce6000",
+            "escb": "hp7475a", "grbl": "grbl", "none": "roland-gx24"}[case]
+    device = device_for(name, xonxoff_device)
+    fab = fabricated(str(ROOT / "jobs/vase-svg.toml"), xonxoff_device if name == "xonxoff" else name)
+    # foldfab-honoured XON/XOFF: the port's driver does not handle it (sockets, --no-xonxoff)
+    port_flow = {"xonxoff": False} if case == "xonxoff-by-foldfab" else {}
+    return device, fab, port_flow
+
+
+@pytest.mark.parametrize("case", NAIVE_CASES)
+def test_naive_sender_loses_data_on_the_simulator_foldfab_does_not(case, xonxoff_device):
+    device, fab, port_flow = naive_and_careful(case, xonxoff_device)
+    naive = open_port(SIM, device, xonxoff=False, rtscts=False)  # write it all at once
+    naive.write(fab.program.encode())
+    naive.simulator.run_until_idle()
+    assert naive.simulator.stats.bytes_lost > 0
+    assert not same_strokes(naive.simulator.strokes, strokes_of(fab.program, device))
+
+    port = sim_port(device, baudrate=FAST_BAUD, **port_flow)
+    run(port, fab.program, device)
+    assert port.simulator.stats.bytes_lost == 0
+    assert same_strokes(port.simulator.strokes, strokes_of(fab.program, device))
+    if case == "xonxoff-by-foldfab":
+        assert port.simulator.stats.xoff_sent > 0  # foldfab saw XOFF itself and held
+
+
+@pytest.fixture
+def pty_plotter(tmp_path):
+    """``foldfab sim NAME --pty`` in a subprocess: yields a function that starts one
+    and returns its /dev/pts path; the recording is read back after SIGINT."""
+    started = []
+
+    def start(device: str, *options: str, time: str = "fast"):
+        record = tmp_path / f"record{len(started)}.json"
+        args = [sys.executable, "-m", "foldfab", "sim", device, "--pty", "--time", time,
+                "--record", str(record)]
+        for option in ("sheet=A3", *options):
+            args += ["-o", option]
+        proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        path = proc.stdout.readline().strip()
+        assert path.startswith("/dev/"), proc.stderr.read()
+        started.append((proc, record))
+        return path, proc, record
+
+    yield start
+    for proc, _ in started:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def stop_pty(proc, record: Path) -> dict:
+    import json
+
+    proc.send_signal(signal.SIGINT)
+    proc.communicate(timeout=30)
+    return json.loads(record.read_text())
+
+
+PTY_CASES = {"xonxoff": "xonxoff", "rtscts": "graphtec-ce6000", "escb": "hp7475a", "grbl": "grbl"}
+"""On a pty the termios driver does XON/XOFF (IXON) and RTS/CTS (CRTSCTS), as on a real port."""
+
+
+@pytest.mark.parametrize("case", list(PTY_CASES))
+def test_foldfab_loses_nothing_over_a_pseudo_terminal(case, xonxoff_device, pty_plotter):
+    """Over a real pty (kernel buffers and termios), for each flow control."""
+    name = PTY_CASES[case]
+    device = device_for(name, xonxoff_device)
+    fab = fabricated(str(ROOT / "jobs/hexagon-fig8a.toml"), xonxoff_device if name == "xonxoff" else name)
+    if device.protocol == "hpgl":  # a small buffer: the job overruns it several times
+        device = replace(device, buffer=replace(device.buffer, size=256))
+    path, proc, record = pty_plotter(xonxoff_device if name == "xonxoff" else name,
+                                     *(["buffer=256"] if device.protocol == "hpgl" else []))
+    port = Spy(open_port(path, device), grbl=device.protocol == "gcode")
+    try:
+        stream(port, fab.program, device, stall_timeout=10)
+    finally:
+        port.close()
+    recording = stop_pty(proc, record)
+    assert recording["stats"]["bytes_lost"] == 0 and not recording["stats"]["errors"]
+    want = strokes_of(fab.program, device)
+    assert len(recording["strokes"]) == len(want)
+    assert all(np.allclose(got["points"], s.points, atol=1e-5) for got, s in zip(recording["strokes"], want))
+    assert port.max_in_flight <= GRBL_RX_BUFFER
+
+
+def test_a_naive_sender_loses_data_over_a_pseudo_terminal(pty_plotter, xonxoff_device):
+    """The same pty plotter overruns when its handshake is ignored."""
+    device = load_device("hp7475a")
+    fab = fabricated(str(ROOT / "jobs/hexagon-fig8a.toml"), "hp7475a")
+    path, proc, record = pty_plotter("hp7475a", "buffer=256", time="real")
+    port = open_port(path, device)
+    port.write(fab.program.encode())
+    port.flush()
+    port.close()
+    time.sleep(len(fab.program.text) / 960 + 1.0)
+    assert stop_pty(proc, record)["stats"]["bytes_lost"] > 0
+
+
+# --- GRBL --------------------------------------------------------------------------------------
+
+
+def grbl_job(strategy: str = "force"):
+    device = load_device("grbl")
+    return device, fabricated(str(ROOT / "jobs/star.toml"), "grbl", strategy)
+
+
+def test_grbl_waits_for_the_banner_and_provokes_one_with_a_soft_reset():
+    device, fab = grbl_job()
+    port = sim_port(device, "reset_on_open=0")
+    run(port, fab.program, device)
+    assert port.written.startswith(b"\x18")  # no banner came: a soft reset brought one
+    assert same_strokes(port.simulator.strokes, strokes_of(fab.program, device))
+
+    port = sim_port(device)  # the board greets when the port opens: no reset
+    run(port, fab.program, device)
+    assert b"\x18" not in port.written
+
+
+def test_grbl_mute_board_is_an_error_not_a_hang():
+    device, fab = grbl_job()
+    port = sim_port(device, "mute=1")
+    with pytest.raises(StreamStopped, match="no GRBL banner .* even after a soft reset"):
+        stream(port, fab.program, device, stall_timeout=1)
+    assert port.written == b"\x18"  # the reset, and nothing of the program
+
+
+def test_grbl_keeps_at_most_127_bytes_unacknowledged():
+    device, fab = grbl_job()
+    port = sim_port(device)
+    run(port, fab.program, device)
+    assert 100 < port.max_in_flight <= GRBL_RX_BUFFER
+    assert port.simulator.stats.max_fill <= GRBL_RX_BUFFER
+
+
+def test_grbl_error_stops_with_line_and_meaning():
+    device, fab = grbl_job()
+    port = sim_port(device, "error_at=40")
+    with pytest.raises(StreamStopped) as stop:
+        run(port, fab.program, device)
+    line = fab.program.text.split("\n")[39]
+    assert str(stop.value).startswith(f"GRBL error 20 at program line 40 ({line!r}): "
+                                      "Unsupported or invalid g-code command found in block.")
+    assert stop.value.lifted and not stop.value.cancelled
+    assert b"!" in port.written and b"\x18" in port.written  # feed hold, then soft reset
+    line_start = fab.program.text.index(line + "\n", sum(len(x) + 1 for x in fab.program.text.split("\n")[:39]) - 1)
+    assert stop.value.acknowledged <= line_start
+
+
+def test_grbl_m0_pause_holds_until_the_operator_answers_then_resumes_with_tilde():
+    device, fab = grbl_job("two-sided")
+    port = sim_port(device)
+    asked = []
+
+    def operator(message):
+        sim = port.simulator
+        asked.append((message, sim.frozen.copy(), bool(sim.planner)))
+        return True
+
+    stream(port, fab.program, device, operator=operator)
+    (pause,) = fab.program.pauses
+    assert asked == [(pause.message, {"hold"}, False)]  # held at M0, motion finished
+    assert b"~" in port.written
+    assert same_strokes(port.simulator.strokes, strokes_of(fab.program, device))
+    assert [p.reason for p in port.simulator.stats.pauses] == ["M0"]
+
+
+class ScriptedGrbl:
+    """A tiny fake GRBL board: banner, ``ok`` per line, status, and a scripted reply."""
+
+    def __init__(self, reply_at: dict[int, str]):
+        self.reply_at, self.lines = reply_at, 0
+        self.out = bytearray(b"Grbl 1.1h ['$' for help]\r\n")
+        self.timeout, self.baudrate, self.bytesize, self.parity, self.stopbits = 1.0, 115200, 8, "N", 1
+        self.xonxoff = self.rtscts = False
+        self.written = bytearray()
+
+    @property
+    def in_waiting(self):
+        return len(self.out)
+
+    def read(self, size=1):
+        data = bytes(self.out[:size])
+        del self.out[:size]
+        return data
+
+    def write(self, data):
+        assert type(data) is bytes
+        self.written += data
+        for byte in data:
+            if byte == ord("?"):
+                self.out += b"<Idle|MPos:0.000,0.000,3.000|FS:0,0>\r\n"
+            elif byte == 0x18:
+                self.out += b"Grbl 1.1h ['$' for help]\r\n"
+            elif byte == ord("\n"):
+                self.lines += 1
+                self.out += (self.reply_at.get(self.lines, "ok") + "\r\n").encode()
+        return len(data)
+
+
+def test_grbl_alarm_stops_the_job_with_its_meaning():
+    device, fab = grbl_job()
+    port = ScriptedGrbl({12: "ALARM:1"})
+    with pytest.raises(StreamStopped, match="GRBL alarm 1: Hard limit triggered") as stop:
+        stream(port, fab.program, device)
+    assert stop.value.lifted
+    assert port.written.count(b"G0 Z3\n") >= 2  # the program's preamble again: tool up
+
+
+# --- the host waits without spinning -------------------------------------------------------------
+
+
+def test_host_cpu_stays_low_while_the_plotter_works(pty_plotter):
+    """A plotter at its own speed on a pty: the host sleeps in blocking reads."""
+    device, fab = grbl_job()
+    path, proc, record = pty_plotter("grbl", time="real")
+    port = open_port(path, device)
+    cancel = threading.Event()
+    timer = threading.Timer(4.0, cancel.set)
+    wall, cpu = time.monotonic(), time.process_time()
+    timer.start()
+    try:
+        with pytest.raises(StreamStopped, match="stopped on request"):
+            stream(port, fab.program, device, cancel=cancel)
+    finally:
+        timer.cancel()
+        port.close()
+    share = (time.process_time() - cpu) / (time.monotonic() - wall)
+    assert share < 0.05, f"the host used {share:.1%} of a core"
+    stop_pty(proc, record)
