@@ -337,8 +337,8 @@ def format_job_line(job) -> str:
     """One row of ``foldfab queue list``."""
     name = job.name if job.copies == 1 else f"{job.name} ({job.copy}/{job.copies})"
     state = job.state + ("*" if job.cancel_requested else "")
-    return (f"{job.id:>5} {state:<12} {job.priority:>4} {job.device:<18} {job.port:<22} "
-            f"{job.percent:>5.1f}%  {name}")
+    port = job.port if len(job.port) <= 24 else job.port[:23] + "~"
+    return f"{job.id:>5} {state:<12} {job.priority:>4} {job.percent:>5.1f}%  {job.device:<16} {port:<24} {name}"
 
 
 def cmd_queue_list(args: argparse.Namespace) -> int:
@@ -350,10 +350,12 @@ def cmd_queue_list(args: argparse.Namespace) -> int:
     elif not jobs:
         print(f"no {args.state + ' ' if args.state else ''}jobs in {store.location}")
     else:
-        lines = [f"{'ID':>5} {'STATE':<12} {'PRI':>4} {'DEVICE':<18} {'PORT':<22} {'DONE':>6}  NAME"]
+        lines = [f"{'ID':>5} {'STATE':<12} {'PRI':>4} {'DONE':>6}  {'DEVICE':<16} {'PORT':<24} NAME"]
         lines.extend(format_job_line(job) for job in jobs)
         if any(job.cancel_requested for job in jobs):
             lines.append("* cancel requested: the worker stops the plotter")
+        if any(len(job.port) > 24 for job in jobs):
+            lines.append("~ port shortened: foldfab queue show ID has it whole")
         print("\n".join(lines))
     return 0
 
@@ -398,7 +400,7 @@ def cmd_queue_cancel(args: argparse.Namespace) -> int:
 
 def cmd_queue_retry(args: argparse.Namespace) -> int:
     """Queue a failed, cancelled or interrupted job again."""
-    job = _queue_store(args).retry(args.id, restart=args.restart)
+    job = _queue_store(args).retry(args.id, restart=args.restart, port=args.port)
     where = (f"resumes at byte {job.acked_bytes} of {job.program_bytes} (--restart: from the start, new sheet)"
              if job.acked_bytes else "runs from the start")
     print(f"job {job.id} queued again: {where}")
@@ -481,8 +483,8 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
     trouble = {state: ids for state, ids in summary.ended.items() if state not in ("done", "cancelled")}
     if trouble:
         raise FoldfabError(", ".join(f"{len(ids)} job(s) {state}" for state, ids in trouble.items())
-                           + ": see foldfab queue show ID for the reason" + ("" if args.dry_run else
-                                                                              "; foldfab queue retry ID"))
+                           + ": foldfab queue show ID says why" + ("" if args.dry_run else
+                           "; run again to resume interrupted jobs, foldfab queue retry ID a failed one"))
     return 0
 
 
@@ -538,6 +540,8 @@ def _add_queue_parser(sub) -> None:
         if name == "retry":
             action.add_argument("--restart", action="store_true",
                                 help="from the start on a new sheet, not from the last acknowledged stroke")
+            action.add_argument("--port", metavar="PORT", help="on this port from now on (the plotter's new "
+                                "device path, or another plotter of the same model)")
 
     clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
     clear.add_argument("--done", action="store_true", required=True, help="delete every done job")

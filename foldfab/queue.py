@@ -244,8 +244,9 @@ class QueueStore(Protocol):
     def cancel(self, job_id: int) -> JobRecord:
         """Cancel a job that has not run, or ask its worker to stop the plotter."""
 
-    def retry(self, job_id: int, restart: bool = False) -> JobRecord:
-        """Queue a failed, cancelled or interrupted job again (``restart``: from byte 0, a new sheet)."""
+    def retry(self, job_id: int, restart: bool = False, port: str | None = None) -> JobRecord:
+        """Queue a failed, cancelled or interrupted job again (``restart``: from byte 0, a new sheet;
+        ``port``: on another port, e.g. after the plotter came back as another device)."""
 
     def continue_job(self, job_id: int, source: str) -> JobRecord:
         """The operator acted at the pause (``source`` says where): ``waiting`` -> ``running``.
@@ -369,14 +370,18 @@ _RUNNABLE = f"""{_SELECT_JOBS}
 
 
 def _pid_alive(pid: int) -> bool:
-    """Whether process ``pid`` exists on this machine."""
+    """Whether process ``pid`` runs on this machine (a zombie, killed but not yet reaped, does not)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:  # it exists, under another user
+        pass
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat:
+            return stat.read().rsplit(b")", 1)[1].split()[0] != b"Z"
+    except (OSError, IndexError):  # no /proc (not Linux): trust kill
         return True
-    return True
 
 
 class SqliteQueueStore:
@@ -612,7 +617,7 @@ class SqliteQueueStore:
                                    + ("; remove it with foldfab queue remove" if job.state in FINISHED else ""))
             return self._get(db, job_id)
 
-    def retry(self, job_id: int, restart: bool = False) -> JobRecord:
+    def retry(self, job_id: int, restart: bool = False, port: str | None = None) -> JobRecord:
         with self._write() as db:
             job = self._get(db, job_id)
             if job.state not in ("failed", "cancelled", "interrupted"):
@@ -621,6 +626,9 @@ class SqliteQueueStore:
             where = "from the start, on a new sheet" if restart or not job.acked_bytes else \
                 f"from byte {job.acked_bytes} of {job.program_bytes} (the last acknowledged stroke)"
             values = {"acked_bytes": 0, "pauses_done": 0, "progress": ""} if restart else {}
+            if port is not None:
+                values["port"] = port
+                where += f", at {port} (was {job.port})"
             self._set(db, job_id, state="queued", reason=None, **values)
             self._event(db, job_id, "retried", f"queued again (was {job.state}): runs {where}")
             return self._get(db, job_id)

@@ -46,9 +46,14 @@ DRY_RUN_PORT = "sim://?time=instant"
 """``--dry-run``: the simulated plotter of the job's device, as fast as it can go."""
 
 
+class PortUnavailable(FoldfabError):
+    """The plotter's port cannot be opened (unplugged, switched off, in use): nothing was sent."""
+
+
 class Runner(Protocol):
     """Plots ``program`` on ``port``; returns when it is done, raises
-    :class:`foldfab.stream.StreamStopped` when it stopped early."""
+    :class:`foldfab.stream.StreamStopped` when it stopped early and :class:`PortUnavailable`
+    when it could not start."""
 
     def __call__(self, program: Program, device: DeviceProfile, port: str, *,
                  events: Callable[[ProgressEvent], None], cancel: threading.Event,
@@ -62,11 +67,27 @@ def stream_runner(program: Program, device: DeviceProfile, port: str, *,
     from foldfab.stream import stream
     from foldfab.transport import open_port
 
-    link = open_port(port, device)
     try:
+        link = open_port(port, device)
+    except FoldfabError as exc:
+        raise PortUnavailable(str(exc)) from None
+    try:
+        _discard_stale_replies(link)
         stream(link, program, device, events=events, cancel=cancel, operator=operator)
     finally:
         link.close()
+
+
+def _discard_stale_replies(link, quiet: float = 0.1, limit: float = 5.0) -> None:
+    """Drop what the plotter still answers to a previous host (a worker that died mid-job):
+    read until the line has been quiet for ``quiet`` s, at most ``limit`` s."""
+    deadline = time.monotonic() + limit
+    link.reset_input_buffer()
+    while time.monotonic() < deadline:
+        time.sleep(quiet)
+        if not link.in_waiting:
+            return
+        link.reset_input_buffer()
 
 
 class WorkerUI(Protocol):
@@ -269,9 +290,8 @@ class Worker:
         except KeyboardInterrupt:
             self._end(job, heartbeat, "interrupted", "the worker was stopped (Ctrl-C)", tracker.acked)
             raise
-        except OSError as exc:  # the port could not be opened (serial.SerialException is an OSError)
-            return self._end(job, heartbeat, "interrupted", f"cannot open port {job.port}: {exc}; connect the "
-                             "plotter, then run again", tracker.acked)
+        except PortUnavailable as exc:
+            return self._end(job, heartbeat, "interrupted", f"{exc}; then run again", tracker.acked)
         except FoldfabError as exc:
             from foldfab.stream import StreamStopped
 
@@ -289,8 +309,8 @@ class Worker:
                 self._end(job, heartbeat, "interrupted", f"the worker was stopped: {exc}; {where}", acked)
                 raise KeyboardInterrupt from None
             return self._end(job, heartbeat, stopped_state(exc), f"{exc}; stopped {where}", acked)
-        return self._end(job, heartbeat, "done", f"finished ({tracker.describe()}; {start.note})",
-                         job.program_bytes)
+        resumed = f" ({start.note})" if start.stroke else ""
+        return self._end(job, heartbeat, "done", f"finished: {tracker.describe()}{resumed}", job.program_bytes)
 
     def _end(self, job: JobRecord, heartbeat: _Heartbeat, state: str, message: str,
              acked: int | None = None) -> str:
@@ -306,9 +326,10 @@ class Worker:
 
 
 def stopped_state(stop: StreamStopped) -> str:
-    """The state of a job the engine stopped by itself: ``interrupted`` if the plotter could not
-    be reached to lift the tool (link lost), ``failed`` if it could (it reported a problem)."""
-    return "failed" if stop.lifted else "interrupted"
+    """The state of a job the engine stopped by itself: ``interrupted`` if the link failed (the
+    engine stops inside its ``except OSError``) or the tool could not be lifted, else ``failed``
+    (the plotter reported an error or stalled)."""
+    return "interrupted" if isinstance(stop.__context__, OSError) or not stop.lifted else "failed"
 
 
 def rehearse(store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOptions(),

@@ -412,7 +412,7 @@ def test_cli_add_list_show_and_actions(tmp_path, capsys):
                            "--port", "sim://graphtec-ce6000", "--copies", "2", "--priority", "4", *queue)
     assert code == 0 and "queued jobs 1-2: hexagon relief, Figure 8 (a) on graphtec-ce6000" in out
     code, out, _ = run_cli(capsys, "queue", "list", *queue)
-    assert out.splitlines()[1].split()[:4] == ["1", "queued", "4", "graphtec-ce6000"]
+    assert out.splitlines()[1].split()[:5] == ["1", "queued", "4", "0.0%", "graphtec-ce6000"]
     code, out, _ = run_cli(capsys, "queue", "show", "2", *queue)
     assert "copy 2 of 2" in out and "queued (copy 2 of 2)" in out
     assert run_cli(capsys, "queue", "cancel", "2", *queue)[1] == "job 2 cancelled\n"

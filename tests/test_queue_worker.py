@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import json
+import signal
+import subprocess
+import sys
 import threading
 import time
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -16,7 +21,7 @@ from foldfab.interpret import interpret
 from foldfab.progress import JobProgress
 from foldfab.queue import NewJob, SqliteQueueStore, make_snapshot
 from foldfab.stream import StreamStopped
-from foldfab.worker import Worker, WorkerOptions, start_point
+from foldfab.worker import PortUnavailable, Worker, WorkerOptions, start_point
 
 ROOT = Path(__file__).resolve().parent.parent
 HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
@@ -32,8 +37,9 @@ def build(device_name: str, strategy: str = "force"):
 
 @pytest.fixture(scope="module")
 def snapshots():
-    return {(name, strategy): build(name, strategy)
-            for name in ("graphtec-ce6000", "grbl") for strategy in ("force", "two-sided")}
+    built = {(name, strategy): build(name, strategy)
+             for name in ("graphtec-ce6000", "grbl", "hp7475a") for strategy in ("force", "two-sided")}
+    return built | {("hp7475a", "perforate"): build("hp7475a", "perforate")}
 
 
 @pytest.fixture()
@@ -278,7 +284,8 @@ def test_port_that_cannot_be_opened_interrupts_without_touching_other_plotters(s
 
     def runner(program, device, port, **kw):
         if port.startswith("/dev/"):
-            raise FileNotFoundError(2, "No such file or directory", port)
+            raise PortUnavailable(f"cannot open port {port}: [Errno 2] No such file or directory; check that "
+                                  "the plotter is connected")
         plotter(program, device, port, **kw)
 
     assert Worker(store, Console(), WorkerOptions(), runner=runner).run().ended == \
@@ -314,3 +321,153 @@ def test_threads_running_workers_run_every_job_exactly_once(store, snapshots):
     for i in range(3):
         assert plotter.drawn[f"sim://p{i}"] == original_strokes(snap) * 4
     assert all(j.attempts == 1 for j in store.jobs())
+
+
+# --- end to end: the command line, real engines, simulated plotters ------------------------------
+
+FOLDFAB = [sys.executable, "-m", "foldfab"]
+
+
+def foldfab(*args: str, check: bool = True, **kw) -> subprocess.CompletedProcess:
+    result = subprocess.run(FOLDFAB + list(args), capture_output=True, text=True, timeout=300, **kw)
+    assert not check or result.returncode == 0, result.stderr
+    return result
+
+
+BUFFER = 64
+
+
+def small_buffer_profile(folder: Path) -> Path:
+    """The HP 7475A with a 64-byte buffer (two or three strokes of the hexagon, instead of 40)."""
+    text = (ROOT / "devices" / "hp7475a.toml").read_text()
+    assert "\nsize = 1024\n" in text
+    path = folder / "hp7475a-small.toml"
+    path.write_text(text.replace('name = "hp7475a"', 'name = "hp7475a-small"')
+                    .replace("\nsize = 1024\n", f"\nsize = {BUFFER}\n"))
+    return path
+
+
+def sheet_strokes(strokes) -> Counter:
+    return Counter(tuple((round(x, 2), round(y, 2)) for x, y in s) for s in strokes)
+
+
+def test_worker_killed_mid_job_is_resumed_by_the_next_run(tmp_path):
+    profile = small_buffer_profile(tmp_path)
+    queue, record = tmp_path / "q.sqlite3", tmp_path / "strokes.json"
+    sim = subprocess.Popen(FOLDFAB + ["sim", str(profile), "--pty", "--time", "fast", "-o", "speedup=5",
+                                      "-o", "sheet=297x210", "--record", str(record)],
+                           stdout=subprocess.PIPE, text=True)
+    try:
+        port = sim.stdout.readline().strip()
+        assert port.startswith("/dev/"), port
+        foldfab("queue", "add", str(HEXAGON), "--device", str(profile), "--port", port, "--queue", str(queue))
+        store = SqliteQueueStore(queue)
+        total = store.job(1).program_bytes
+        first = subprocess.Popen(FOLDFAB + ["queue", "run", "--queue", str(queue)], stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.DEVNULL)
+        wait_for(lambda: store.job(1).acked_bytes > 0.4 * total, timeout=60)
+        first.send_signal(signal.SIGKILL)
+        first.wait()
+        job = store.jobs()[0]  # no lease to wait for: the worker's process is gone
+        assert job.state == "interrupted" and 0 < job.acked_bytes < total
+        resumed_at = job.acked_bytes
+        # The plotter still draws what the dead worker left in its buffer, then answers that worker's
+        # last OE; the engine would take a late answer for its own, so give the plotter time to finish.
+        time.sleep(2.0)
+        second = foldfab("queue", "run", "--queue", str(queue), check=False)
+        assert second.returncode == 0, foldfab("queue", "show", "1", "--queue", str(queue)).stdout
+        assert "resumed at stroke" in second.stdout and "job 1 done" in second.stdout
+    finally:
+        sim.send_signal(signal.SIGINT)
+        sim.communicate(timeout=30)
+    strokes = interpret(store.snapshot(1).program, load_device(profile), (297, 210)).strokes
+    expected = sheet_strokes(s.points for s in strokes)
+    drawn = sheet_strokes(s["points"] for s in json.loads(record.read_text())["strokes"])
+    assert not expected - drawn, "a stroke was lost"
+    # Drawn twice: the interrupted stroke, and those the plotter still had in its buffer when the
+    # worker died (it draws them; the worker had not seen them acknowledged), nothing else.
+    first = next(i for i, s in enumerate(strokes) if s.end > resumed_at)
+    window = [s for s in strokes[first:] if s.offset < strokes[first].end + BUFFER]
+    twice = drawn - expected
+    assert set(twice) <= set(sheet_strokes(s.points for s in window)), f"drawn twice: {twice}"
+    assert sum(twice.values()) <= len(window) <= 4
+    kinds = [e.kind for e in store.events(1)]
+    assert kinds == ["queued", "started", "interrupted", "started", "done"]
+
+
+@pytest.mark.parametrize("device, fault, state, reason", [
+    ("hp7475a", "disconnect_after=300", "interrupted", "cable pulled after 300 bytes"),
+    ("grbl", "error_at=12", "failed", "GRBL error 20 at program line 12"),
+    ("graphtec-ce6000", "error_at=30", "failed", "reports HP-GL error 1 (instruction not recognized)"),
+])
+def test_faults_of_the_plotter_end_the_job_with_the_reason_and_retry_finishes_it(tmp_path, device, fault,
+                                                                                 state, reason):
+    queue = ["--queue", str(tmp_path / "q.sqlite3")]
+    foldfab("queue", "add", str(HEXAGON), "--device", device, "--port", f"sim://{device}?time=instant&{fault}",
+            *queue)
+    run = foldfab("queue", "run", *queue, check=False)
+    assert run.returncode == 2 and f"1 job(s) {state}" in run.stderr
+    shown = foldfab("queue", "show", "1", *queue).stdout
+    assert f"state        {state}: " in shown and reason in shown
+    foldfab("queue", "retry", "1", "--port", f"sim://{device}?time=instant", *queue)
+    assert "job 1 done" in foldfab("queue", "run", *queue).stdout
+    kinds = [line.split()[2] for line in foldfab("queue", "show", "1", *queue).stdout.splitlines()
+             if line.startswith("  20")]
+    assert kinds == ["queued", "started", state, "retried", "started", "done"]
+
+
+def test_worker_processes_racing_run_every_job_exactly_once(tmp_path):
+    queue = ["--queue", str(tmp_path / "q.sqlite3")]
+    for index, device in enumerate(["grbl", "hp7475a", "graphtec-ce6000"]):
+        foldfab("queue", "add", str(HEXAGON), "--device", device, "--port",
+                f"sim://{device}?time=instant&seed={index}", "--copies", "3", *queue)
+    workers = [subprocess.Popen(FOLDFAB + ["queue", "run", *queue], stdout=subprocess.PIPE, text=True)
+               for _ in range(3)]
+    outputs = [worker.communicate(timeout=300)[0] for worker in workers]
+    assert all(worker.returncode == 0 for worker in workers), outputs
+    store = SqliteQueueStore(tmp_path / "q.sqlite3")
+    assert [(j.state, j.attempts) for j in store.jobs()] == [("done", 1)] * 9
+    ended = [line.split()[1] for out in outputs for line in out.splitlines()
+             if line.startswith("job ") and " done: " in line]
+    assert sorted(ended, key=int) == [str(i) for i in range(1, 10)]
+
+
+def test_dry_run_rehearses_on_simulated_plotters_and_changes_nothing(tmp_path):
+    queue = ["--queue", str(tmp_path / "q.sqlite3")]
+    foldfab("queue", "add", str(HEXAGON), "--device", "grbl", "--port", "/dev/plotter-not-connected", *queue)
+    two_sided = tmp_path / "two.toml"
+    two_sided.write_text(HEXAGON.read_text().replace('strategy = "force"', 'strategy = "two-sided"'))
+    foldfab("queue", "add", str(two_sided), "--device", "hp7475a", "--port", "/dev/ttyUSB7", *queue)
+    before = foldfab("queue", "list", "--json", *queue).stdout
+    run = foldfab("queue", "run", "--dry-run", *queue)
+    assert "dry run on sim://?time=instant instead of /dev/plotter-not-connected" in run.stdout
+    assert "answered by the dry run" in run.stdout and "2 done (1, 2)" in run.stdout
+    assert foldfab("queue", "list", "--json", *queue).stdout == before
+    assert foldfab("queue", "run", "--once", "--device", "nonesuch", *queue).stdout.startswith("nothing to run")
+
+
+def test_cancel_of_a_running_job_lifts_the_tool_on_the_real_engine(store, snapshots):
+    from foldfab.transport import open_port
+    from foldfab.stream import stream
+
+    snap = snapshots[("hp7475a", "perforate")]  # 12 kB: more than the 1 kB buffer, so acknowledged early
+    store.add([NewJob(snap, "sim://hp7475a?time=fast&speedup=10")])
+    simulators = []
+
+    def runner(program, device, port, **kw):
+        link = open_port(port, device)
+        simulators.append(link.simulator)
+        try:
+            stream(link, program, device, **kw)
+        finally:
+            link.close()
+
+    thread = in_thread(Worker(store, Console(), WorkerOptions(heartbeat=0.05), runner=runner))
+    wait_for(lambda: store.job(1).acked_bytes > 0)
+    assert main(["queue", "cancel", "1", "--queue", str(store.path)]) == 0
+    thread.join(60)
+    job = store.job(1)
+    assert job.state == "cancelled" and "stopped on request" in job.reason
+    plotter = simulators[0]
+    assert plotter.machine.stroke is None  # the pen is up
+    assert 0 < len(plotter.strokes) < len(original_strokes(snap))
