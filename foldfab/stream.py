@@ -20,8 +20,9 @@ A *checkpoint* writes ``OE;`` and waits for the answer.  An output instruction i
 answered only when the plotter reaches it in its buffer, after the moves before it, so
 the round trip drains the buffer with every flow control, and the answer is the error
 register (cleared by reading): 0 means every command since the previous checkpoint
-was understood.  Checkpoints come at pauses, at the end and every buffer size of
-bytes (so an error is found within one buffer, and the executed count is exact).
+was understood.  Checkpoints come at pauses, at the end and every :data:`CHECK_EVERY`
+bytes (at most a buffer), so an error is found within that window and the executed
+count is exact there.
 Between checkpoints the executed count is conservative: ``ESC.B`` gives it exactly at
 each query; the other modes assume a full buffer and the bytes on the wire are still
 to execute.
@@ -75,6 +76,9 @@ PLANNER_BLOCKS = 16
 after the 16th-last motion line may not have moved the machine yet."""
 STATUS_INTERVAL = 0.2
 """At most 5 status queries a second."""
+CHECK_EVERY = 512
+"""HP-GL: bytes between checkpoints (at most one buffer): an HP-GL error is found within
+this many bytes, and a resume after it draws these bytes' strokes again."""
 BANNER_WAIT = 2.5
 """Seconds to wait for the GRBL banner (an Arduino boots in about 2 s), before and after
 the soft reset."""
@@ -383,10 +387,14 @@ class _HPGLSender(_Sender):
                                 self.port.rtscts if self.flow == "rtscts" else False)
         """The port's driver obeys the handshake (pyserial xonxoff/rtscts)."""
         self.cts_line = True  # the port can report CTS
+        self.check_every = min(self.size, CHECK_EVERY)
         self.checked = 0  # program bytes executed at the last checkpoint
         self.xoff = False
         self.credit = 0  # escb: bytes that fit by the last answer to ESC.B
+        self.capacity = 0  # escb: the most free space ever reported (an empty buffer)
         self.replies: deque[str] = deque()
+        self.unsure = False  # a question went unanswered: its answer may still come
+        self.identities = 0  # OI questions not answered yet
         self.ends = [i + 1 for i, byte in enumerate(self.data) if byte == ord(";")]
 
     def send_program(self) -> None:
@@ -407,14 +415,14 @@ class _HPGLSender(_Sender):
         """Send whole commands up to byte ``stop`` as the handshake allows."""
         while self.sent < stop:
             self.check_cancel()
-            if self.sent - self.checked >= self.size and self.flow != "none":
+            if self.sent - self.checked >= self.check_every:
                 self.checkpoint()
             command = self.command_end(self.sent, stop) - self.sent
             if self.flow == "escb":  # several commands per ESC.B question
                 need = min(max(command, self.size // 8), self.size - 3, stop - self.sent)
             else:
                 need = min(command, self.ahead if self.flow != "none" else self.size - 3)
-            room = self.room(need)
+            room = min(self.room(need), self.checked + self.check_every - self.sent)
             # as many whole commands as fit; a command longer than the room goes in pieces
             index = bisect.bisect_right(self.ends, min(self.sent + room, stop)) - 1
             end = self.ends[index] if index >= 0 and self.ends[index] > self.sent else self.sent + room
@@ -485,7 +493,8 @@ class _HPGLSender(_Sender):
         best, since = -1, time.monotonic()
         while self.credit < need:
             self.credit = self.ask(b"\x1b.B", "ESC.B (free buffer space)", self.stall_timeout)
-            self.acked = max(self.acked, self.sent - (self.size - self.credit))
+            self.capacity = max(self.capacity, self.credit)
+            self.acked = max(self.acked, self.sent - (self.capacity - self.credit))
             if self.credit >= need:
                 break
             if self.credit > best:
@@ -516,28 +525,49 @@ class _HPGLSender(_Sender):
 
     def ask(self, command: bytes, what: str, timeout: float) -> int:
         """Send an output instruction; return its decimal answer."""
+        if self.unsure:
+            self.resync(timeout)
         self.write(command)
+        line = self.answer(command, what, timeout)
+        number = line.split(",")[0].strip()
+        if not number.isdigit():
+            raise _Fault(f"{self.device.name} answered {what} with {line!r}, not a number "
+                         "(line noise, or other serial settings?)")
+        return int(number)
+
+    def answer(self, command: bytes, what: str, timeout: float) -> str:
+        """The next reply line; a question without one makes the replies unsure."""
         deadline = time.monotonic() + timeout + self.on_wire() * self.char_time
         while not self.replies:
             self.replies.extend(self.lines())
             if self.replies:
                 break
             if time.monotonic() > deadline:
-                raise _Fault(f"{self.device.name} did not answer {what} within {timeout:.0f} s: "
-                             "is it switched on, connected, and set to the profile's serial settings?")
+                self.unsure = True  # its answer may still come, and be taken for another's
+                if command.startswith(b"\x1b"):  # noise may have made it a device-control
+                    self.write(b":")  # instruction that takes parameters: ":" ends it
+                raise _Fault(f"{self.device.name} did not answer {what} within {timeout:.0f} s "
+                             "(switched off, hung, line noise, a loose cable, or other serial settings?)")
             self.receive(wait=True)
-        line = self.replies.popleft()
-        number = line.split(",")[0].strip()
-        if not number.isdigit():
-            raise _Fault(f"{self.device.name} answered {what} with {line!r}, not a number "
-                         "(line noise, or the wrong serial settings?)")
-        return int(number)
+        return self.replies.popleft()
+
+    def resync(self, timeout: float) -> None:
+        """Ask ``OI`` (identification: text, where every other answer is a number) and drop
+        the late numbers before its answers."""
+        self.write(b"OI;")
+        self.identities += 1
+        while self.identities:
+            if not self.answer(b"OI;", "OI (identification)", timeout).isdigit():
+                self.identities -= 1
+        self.unsure = False
 
     def checkpoint(self) -> None:
         """Wait until the plotter has executed everything sent and check its error register."""
         if self.sent == self.checked and self.sent:
             return
-        if self.flow in ("xonxoff", "rtscts", "escb"):
+        if self.flow == "escb":  # drain by ESC.B: answered at once, so a hung plotter shows
+            self.escb_room(self.capacity)
+        elif self.flow != "none":
             self.room(3)
         error = self.ask(b"OE;", "OE (output error)", self.patience(self.checked, self.sent))
         self.credit = self.size  # the buffer is empty now
@@ -562,9 +592,12 @@ class _HPGLSender(_Sender):
         finally:  # a plotter that does not answer still gets the PU; to execute when it can
             self.write(b"PU;")
         error = self.ask(b"OE;", "OE (output error)", self.patience(self.acked, self.sent))
-        if suspect or error:
-            return f"the plotter also reports HP-GL error {error}" if error and not suspect else ""
-        self.acked = self.checked = self.sent
+        if error:  # somewhere since the last checkpoint: those bytes count as not executed
+            self.acked = self.checked
+            meaning = HPGL_ERRORS.get(error, "unknown error")
+            return "" if suspect else f"the plotter also reports HP-GL error {error} ({meaning})"
+        if not suspect:
+            self.acked = self.checked = self.sent
         return ""
 
 

@@ -1,0 +1,336 @@
+"""Safe stops, resume states and resumed programs.
+
+A stop must leave the tool up and report, conservatively, what the plotter executed;
+the resumed program must draw every stroke not yet drawn, with the same tools, and
+no more than what the sender could not know about.  The fault tests run the stopped
+job on one simulated plotter and the resume on a fresh one (the operator power-cycled
+it), then compare both recordings with the program.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import threading
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from foldfab.devices import load_device
+from foldfab.errors import FoldfabError
+from foldfab.progress import JobProgress
+from foldfab.resume import (PlotStopped, ResumeState, check_state, load_state, plot, program_hash,
+                            resume_program, save_state, state_dir)
+from foldfab.stream import CHECK_EVERY, StreamStopped, stream
+from test_stream import (FAST_BAUD, JOBS, ROOT, device_for, fabricated, same_strokes, sim_port,  # noqa: F401
+                         xonxoff_device,
+                         strokes_of)
+
+FLOWS = {"escb": "hp7475a", "rtscts": "graphtec-ce6000", "none": "roland-gx24", "grbl": "grbl",
+         "xonxoff": "xonxoff"}
+VASE = str(ROOT / "jobs/vase-svg.toml")
+
+
+@pytest.fixture(autouse=True)
+def state_home(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    return tmp_path / "state"
+
+
+def job_for(name, xonxoff_device, job=VASE, strategy="force"):
+    device = device_for(name, xonxoff_device)
+    return device, fabricated(job, xonxoff_device if name == "xonxoff" else name, strategy)
+
+
+# --- resume_program ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("strategy", ["force", "two-sided", "perforate"])
+@pytest.mark.parametrize("name", ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"])
+@pytest.mark.parametrize("job", JOBS, ids=[j.stem for j in JOBS])
+def test_resume_program_draws_exactly_the_remaining_strokes(job, name, strategy):
+    device = load_device(name)
+    program = fabricated(str(job), name, strategy).program
+    strokes = strokes_of(program, device)
+    for index in sorted({0, 1, len(strokes) // 3, len(strokes) // 2, len(strokes) - 1}):
+        resumed = resume_program(program, device, index)
+        got = strokes_of(resumed, device)
+        assert same_strokes(got, strokes[index:]), index
+        assert [s.section.name for s in got] == [s.section.name for s in strokes[index:]]
+        assert resumed.text.endswith(program.text[strokes[index].offset:])
+        later = [p.message for p in program.pauses if p.offset > strokes[index].offset]
+        assert [p.message for p in resumed.pauses] == later  # pauses before it count as done
+
+
+@pytest.mark.parametrize("name", ["hp7475a", "grbl"])
+def test_an_unconfirmed_pause_is_asked_again_before_the_tool_moves(name):
+    device = load_device(name)
+    program = fabricated(str(ROOT / "jobs/star.toml"), name, "two-sided").program
+    (pause,) = program.pauses
+    strokes = strokes_of(program, device)
+    first_after = next(i for i, s in enumerate(strokes) if s.offset > pause.offset)
+    resumed = resume_program(program, device, first_after, pauses_done=0)
+    (again,) = resumed.pauses
+    assert again.message == pause.message
+    assert again.offset < resumed.text.index("PD" if name == "hp7475a" else "G1 Z")
+    assert resume_program(program, device, first_after, pauses_done=1).pauses == ()
+    # streamed: the operator is asked before anything is drawn
+    port = sim_port(device)
+    asked = []
+    stream(port, resumed, device, operator=lambda m: asked.append(len(port.simulator.strokes)) or True)
+    assert asked == [0]
+    assert same_strokes(port.simulator.strokes, strokes[first_after:])
+
+
+def test_resume_program_refuses_a_stroke_that_does_not_exist():
+    device = load_device("grbl")
+    program = fabricated(str(ROOT / "jobs/star.toml"), "grbl").program
+    with pytest.raises(FoldfabError, match="cannot resume at stroke 37: the program draws 36 strokes"):
+        resume_program(program, device, 36)
+
+
+# --- faults: a clear message, the tool up, a resume that completes the drawing ------------------
+
+
+def leading_matches(drawn, wanted) -> int:
+    """How many strokes at the start of ``drawn`` are exactly the program's."""
+    count = 0
+    for got, want in zip(drawn, wanted):
+        if got.points.shape != want.points.shape or not np.allclose(got.points, want.points, atol=1e-6):
+            break
+        count += 1
+    return count
+
+
+def strokes_in(program, device, start: int, end: int) -> int:
+    """Strokes with bytes in ``start..end`` of the program."""
+    return sum(s.end > start and s.offset < end for s in strokes_of(program, device))
+
+
+def stop_and_resume(device, fab, options: str, cancel_after: int | None = None, stall_timeout=1.0,
+                    time="instant"):
+    """Run 1 until it stops; let the plotter finish what it holds; resume on a fresh plotter."""
+    port = sim_port(device, f"time={time}&{options}", baudrate=FAST_BAUD)
+    cancel = threading.Event()
+    if cancel_after is not None:
+        write = port._port.write
+
+        def counting(data):
+            if len(port.written) > cancel_after:
+                cancel.set()
+            return write(data)
+        port._port.write = counting
+    with pytest.raises(StreamStopped) as stopped:
+        stream(port, fab.program, device, cancel=cancel, operator=lambda m: True,
+               stall_timeout=stall_timeout)
+    first = port.simulator
+    first.run_until_idle()  # the plotter finishes whatever it still holds
+    stop = stopped.value
+    want = strokes_of(fab.program, device)
+    index = JobProgress(fab.program, device).strokes_done(stop.acknowledged)
+    second = sim_port(device, baudrate=FAST_BAUD)
+    if index < len(want):
+        stream(second, resume_program(fab.program, device, index, stop.pauses_done), device,
+               operator=lambda m: True)
+    return stop, first, second.simulator, index, want
+
+
+def tool_up(sim) -> bool:
+    return sim.machine.stroke is None and (sim.protocol == "hpgl" or sim.machine.z > 0)
+
+
+EXACT = ["cancel", "stall"]
+
+
+@pytest.mark.parametrize("name", list(FLOWS))
+@pytest.mark.parametrize("fault", ["cancel", "disconnect", "error", "stall", "mute", "noise"])
+def test_fault_stops_safely_and_the_resume_completes_the_drawing(fault, name, xonxoff_device):
+    device, fab = job_for(FLOWS[name], xonxoff_device)
+    grbl = device.protocol == "gcode"
+    flow = device.buffer.flow_control
+    if fault == "mute" and flow in ("xonxoff", "none"):
+        pytest.skip("nothing to ask a plotter in that mode but the checkpoint, after a buffer's work")
+    if fault == "stall" and flow in ("xonxoff", "rtscts", "none"):
+        pytest.skip("a pause shorter than the expected work is not a fault there (test below)")
+    options = {"cancel": "", "disconnect": "disconnect_after=3000", "error": "error_at=100",
+               "stall": "stall=150&stall_at=1500", "mute": "mute=1", "noise": "noise=0.002"}[fault]
+    stop, first, second, index, want = stop_and_resume(
+        device, fab, options, cancel_after=3000 if fault == "cancel" else None,
+        time="fast" if fault == "stall" else "instant")
+    message = str(stop)
+    expected = {
+        "cancel": "stopped on request",
+        "disconnect": f"serial link to {device.name} failed: .*device disconnected",
+        "error": "GRBL error 20 at program line 100 " if grbl else
+                 f"{device.name} reports HP-GL error 1 \\(instruction not recognized\\) in program bytes",
+        "stall": "GRBL stopped answering" if grbl else f"{device.name} did not answer ESC.B",
+        "mute": {"escb": "did not answer ESC.B", "rtscts": "stalled: CTS low",
+                 "grbl": "no GRBL banner"}.get(flow, ""),
+        "noise": "GRBL error" if grbl else "reports HP-GL error|did not answer ESC.B",
+    }[fault]
+    assert re.search(expected, message), message
+    assert stop.cancelled == (fault == "cancel")
+    if fault == "disconnect":
+        assert not stop.lifted  # nobody to tell; foldfab says the tool may be down
+    else:
+        assert stop.lifted and tool_up(first)
+    # the resume draws exactly the rest, and nothing before it was left undrawn
+    assert same_strokes(second.strokes, want[index:])
+    drawn = leading_matches(first.strokes, want)
+    if fault != "noise":  # noise may also change a digit: a valid command, drawn wrong
+        assert index <= drawn, "a stroke would be lost"
+    twice = len(first.strokes) - index
+    if fault in EXACT or (grbl and fault == "error"):
+        assert twice <= 1
+    elif fault == "error" or (fault == "noise" and not grbl):  # found at the next checkpoint
+        assert twice <= strokes_in(fab.program, device, stop.acknowledged, stop.acknowledged + CHECK_EVERY)
+    elif fault == "disconnect":  # the plotter went on with what it held; foldfab cannot know how far
+        window = device.buffer.size + 64 if not grbl else 127
+        assert twice <= strokes_in(fab.program, device, 3000 - window - 400, 3000)
+
+
+@pytest.mark.parametrize("name", ["rtscts", "xonxoff", "none"])
+def test_a_short_stall_is_ridden_out(name, xonxoff_device):
+    """Without a way to ask, a plotter that stops for less than the work it holds is waited for."""
+    device, fab = job_for(FLOWS[name], xonxoff_device)
+    port = sim_port(device, "time=fast&stall=100&stall_at=1500", baudrate=FAST_BAUD)
+    stream(port, fab.program, device, stall_timeout=1.0)
+    assert port.simulator.stats.stalled_time == pytest.approx(100)
+    assert same_strokes(port.simulator.strokes, strokes_of(fab.program, device))
+
+
+def test_ctrl_c_stops_safely_like_a_cancel():
+    device, fab = job_for("hp7475a", "")
+    port = sim_port(device, baudrate=FAST_BAUD)
+    write = port._port.write
+
+    def interrupted(data):
+        if len(port.written) > 2000:
+            port._port.write = write  # Ctrl-C, once
+            raise KeyboardInterrupt
+        return write(data)
+    port._port.write = interrupted
+    with pytest.raises(StreamStopped, match="stopped by Ctrl-C") as stop:
+        stream(port, fab.program, device)
+    port._port.write = write
+    assert stop.value.cancelled and stop.value.exit_code == 130 and stop.value.lifted
+
+
+# --- resume states and plot() -----------------------------------------------------------------------
+
+
+def test_state_is_saved_atomically_and_read_back(state_home):
+    state = ResumeState("abc123", "/jobs/a.toml", "grbl", "sim://", "0" * 64, 10, 3, 9, 0, "why")
+    path = save_state(state)
+    assert path == state_home / "foldfab" / "resume" / "abc123.json"
+    assert json.loads(path.read_text())["stroke"] == 3
+    assert load_state("abc123") == state
+    assert not list(path.parent.glob(".*"))  # no temporary file left
+
+
+@pytest.mark.parametrize("token, message", [
+    ("xyz", "not a resume token"),
+    ("abcdef", "no saved plot with that token"),
+])
+def test_bad_tokens_are_refused(token, message):
+    with pytest.raises(FoldfabError, match=message):
+        load_state(token)
+
+
+def test_a_damaged_state_is_refused(state_home):
+    folder = state_dir()
+    folder.mkdir(parents=True)
+    (folder / "abcdef.json").write_text("{not json")
+    with pytest.raises(FoldfabError, match="cannot read"):
+        load_state("abcdef")
+    (folder / "abcdef.json").write_text('{"hello": 1}')
+    with pytest.raises(FoldfabError, match="not a foldfab resume state"):
+        load_state("abcdef")
+
+
+def test_a_changed_program_device_or_job_is_refused():
+    device = load_device("grbl")
+    program = fabricated(str(ROOT / "jobs/star.toml"), "grbl").program
+    job = str(ROOT / "jobs/star.toml")
+    state = ResumeState("abcdef", str(Path(job).resolve()), "grbl", "sim://", program_hash(program),
+                        len(program.text), 3, 36, 0, "why")
+    check_state(state, program, job, device)
+    changed = replace(program, text=program.text.replace("F1800", "F1801"))
+    with pytest.raises(FoldfabError, match="changed since the plot stopped"):
+        check_state(state, changed, job, device)
+    with pytest.raises(FoldfabError, match="ran on device 'grbl', not 'hp7475a'"):
+        check_state(state, program, job, load_device("hp7475a"))
+    with pytest.raises(FoldfabError, match="that plot was"):
+        check_state(state, program, str(ROOT / "jobs/helix-fig12.toml"), device)
+
+
+@pytest.fixture
+def opened(monkeypatch):
+    """The ports plot() opens (their simulators stay readable after plot closes them)."""
+    import foldfab.transport
+
+    ports = []
+    real = foldfab.transport.open_port
+
+    def spy(url, device, **kw):
+        ports.append(real(url, device, **kw))
+        return ports[-1]
+    monkeypatch.setattr(foldfab.transport, "open_port", spy)
+    return ports
+
+
+@pytest.mark.parametrize("name", ["grbl", "hp7475a"])
+def test_plot_saves_a_state_and_resume_finishes_the_job(name, opened, state_home):
+    device = load_device(name)
+    job = str(ROOT / "jobs/vase-svg.toml")
+    program = fabricated(job, name).program
+    with pytest.raises(PlotStopped) as stopped:
+        plot(program, device, job=job, port="sim://?time=instant&sheet=A3&error_at=100")
+    token = stopped.value.token
+    assert token and stopped.value.exit_code == 2
+    state = load_state(token)
+    assert (state.device, state.stroke, state.strokes) == (name, stopped.value.stroke, stopped.value.strokes)
+    assert state.program_sha256 == program_hash(program) and state.port.endswith("error_at=100")
+    assert f"resume token {token}" in str(stopped.value) and "tool lifted" in str(stopped.value)
+
+    plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=token)
+    assert not state.path.exists()  # finished: the state is gone
+    want = strokes_of(program, device)
+    first, second = (port.simulator for port in opened)
+    assert state.stroke <= leading_matches(first.strokes, want)
+    assert same_strokes(second.strokes, want[state.stroke:])
+
+
+def test_a_second_stop_updates_the_same_state(opened, state_home):
+    device = load_device("grbl")
+    job = str(ROOT / "jobs/vase-svg.toml")
+    program = fabricated(job, "grbl").program
+    with pytest.raises(PlotStopped) as first:
+        plot(program, device, job=job, port="sim://?time=instant&sheet=A3&error_at=100")
+    with pytest.raises(PlotStopped) as second:
+        plot(program, device, job=job, port="sim://?time=instant&sheet=A3&error_at=120",
+             resume=first.value.token)
+    assert second.value.token == first.value.token
+    assert load_state(first.value.token).stroke > first.value.stroke
+    plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=first.value.token)
+    want = strokes_of(program, device)
+    runs = [port.simulator for port in opened]
+    assert same_strokes(runs[2].strokes, want[second.value.stroke:])
+
+
+def test_pauses_confirmed_before_the_stop_are_not_asked_again(opened, state_home):
+    device = load_device("grbl")
+    job = str(ROOT / "jobs/star.toml")
+    program = fabricated(job, "grbl", "two-sided").program
+    after_pause = program.pauses[0].offset
+    line = program.text[:after_pause].count("\n") + 8  # a few lines after the flip
+    with pytest.raises(PlotStopped) as stopped:
+        plot(program, device, job=job, port=f"sim://?time=instant&sheet=A3&error_at={line}",
+             operator=lambda m: True)
+    assert load_state(stopped.value.token).pauses_done == 1
+    asked = []
+    plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=stopped.value.token,
+         operator=lambda m: asked.append(m) or True)
+    assert asked == []
