@@ -528,7 +528,9 @@ class _HPGLSender(_Sender):
         if self.unsure:
             self.resync(timeout)
         self.write(command)
+        self.unsure = True  # until its answer is read: a stop may abandon the question
         line = self.answer(command, what, timeout)
+        self.unsure = False
         number = line.split(",")[0].strip()
         if not number.isdigit():
             raise _Fault(f"{self.device.name} answered {what} with {line!r}, not a number "
@@ -542,8 +544,7 @@ class _HPGLSender(_Sender):
             self.replies.extend(self.lines())
             if self.replies:
                 break
-            if time.monotonic() > deadline:
-                self.unsure = True  # its answer may still come, and be taken for another's
+            if time.monotonic() > deadline:  # its answer may still come: the replies stay unsure
                 if command.startswith(b"\x1b"):  # noise may have made it a device-control
                     self.write(b":")  # instruction that takes parameters: ":" ends it
                 raise _Fault(f"{self.device.name} did not answer {what} within {timeout:.0f} s "

@@ -1,0 +1,130 @@
+"""``foldfab plot``: progress on stdout, one-line errors with exit code 2, Ctrl-C with 130."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from foldfab.cli import main
+from foldfab.resume import state_dir
+
+ROOT = Path(__file__).resolve().parent.parent
+HELIX = str(ROOT / "jobs/helix-fig12.toml")
+INSTANT = "sim://?time=instant"
+
+
+@pytest.fixture(autouse=True)
+def state_home(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    return tmp_path / "state"
+
+
+def two_sided(tmp_path: Path, source: str = HELIX) -> str:
+    """A copy of a job that scores valleys, waits for the flip, then the rest."""
+    text = Path(source).read_text().split("[fabrication]")[0]
+    job = tmp_path / Path(source).name
+    job.write_text(text + '\n[fabrication]\nstrategy = "two-sided"\n')
+    return str(job)
+
+
+def plot(capsys, *args: str) -> tuple[int, str, str]:
+    code = main(["plot", *args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_json_progress_events_and_a_finished_job(capsys, tmp_path):
+    preview = tmp_path / "preview.svg"
+    code, out, err = plot(capsys, HELIX, "--device", "grbl", "--port", "sim://?time=fast", "--json",
+                          "--preview", str(preview))
+    assert code == 0, err
+    events = [json.loads(line) for line in out.splitlines()]
+    assert events[0]["event"] == "start" and events[-1]["event"] == "done"
+    assert events[-1]["percent"] == 100.0 and events[-1]["strokes_done"] == events[-1]["strokes_total"] > 0
+    assert {"acknowledged", "drawn", "drawn_total", "layer", "elapsed", "eta"} <= set(events[0])
+    acked = [e["acknowledged"] for e in events]
+    assert acked == sorted(acked)
+    assert preview.read_text().startswith("<?xml") or "<svg" in preview.read_text()
+
+
+def test_plain_progress_lines_when_stdout_is_not_a_terminal(capsys):
+    code, out, err = plot(capsys, HELIX, "--device", "hp7475a", "--port", INSTANT)
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].strip().startswith("0.0%") and lines[-1].endswith("done")
+    assert "\r" not in out  # no bar redrawn in place
+
+
+def test_pauses_need_a_terminal_or_yes(capsys, tmp_path):
+    job = two_sided(tmp_path)
+    code, out, err = plot(capsys, job, "--device", "grbl", "--port", INSTANT)
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "pauses 1 time(s) for the operator" in err and "--yes" in err
+    code, out, err = plot(capsys, job, "--device", "grbl", "--port", INSTANT, "--yes", "--json")
+    assert code == 0, err
+    kinds = [json.loads(line)["event"] for line in out.splitlines()]
+    assert kinds.count("pause") == 1 and kinds.index("pause") < kinds.index("resume")
+    assert "Flip the sheet" in err  # the instruction, answered by --yes
+
+
+def test_errors_are_one_line_with_exit_code_2(capsys):
+    code, out, err = plot(capsys, HELIX, "--device", "grbl", "--port", "/dev/no-such-plotter")
+    assert code == 2 and err.count("\n") == 1 and err.startswith("foldfab: error: cannot open port")
+    code, out, err = plot(capsys, HELIX, "--device", "grbl", "--resume", "abcdef", "--port", INSTANT)
+    assert code == 2 and err.count("\n") == 1 and "no saved plot with that token" in err
+    code, out, err = plot(capsys, HELIX, "--device", "grbl", "--port", f"{INSTANT}&mute=1")
+    assert code == 2 and err.count("\n") == 1 and "no GRBL banner" in err
+
+
+def test_a_plotter_error_prints_how_to_resume_and_the_resume_finishes(capsys, tmp_path):
+    job = str(tmp_path / "helix.toml")
+    Path(job).write_text(Path(HELIX).read_text())
+    code, out, err = plot(capsys, job, "--device", "grbl", "--port", f"{INSTANT}&error_at=30")
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("foldfab: error: GRBL error 20 at program line 30 (")
+    assert "tool lifted" in err and "to finish the job run: foldfab plot" in err
+    command = err.split("to finish the job run: ")[1].split()
+    token = command[command.index("--resume") + 1]
+    assert (state_dir() / f"{token}.json").exists()
+
+    code, out, err = plot(capsys, job, "--device", "grbl", "--port", INSTANT, "--resume", token)
+    assert code == 0, err
+    assert not (state_dir() / f"{token}.json").exists()
+
+
+def test_resume_refuses_a_changed_job(capsys, tmp_path):
+    job = tmp_path / "helix.toml"
+    job.write_text(Path(HELIX).read_text())
+    code, out, err = plot(capsys, str(job), "--device", "grbl", "--port", f"{INSTANT}&error_at=30")
+    token = err.split("--resume ")[1].split()[0]
+    job.write_text(job.read_text() + '\n[fabrication]\nscale = 0.5\n')
+    code, out, err = plot(capsys, str(job), "--device", "grbl", "--port", INSTANT, "--resume", token)
+    assert code == 2 and err.count("\n") == 1
+    assert "changed since the plot stopped" in err and "plot the whole job again" in err
+
+
+def test_ctrl_c_stops_safely_exits_130_and_prints_the_resume_command(tmp_path):
+    env = dict(os.environ, XDG_STATE_HOME=str(tmp_path / "state"))
+    job = tmp_path / "vase.toml"  # a long job: it is still plotting when Ctrl-C comes
+    job.write_text((ROOT / "jobs/vase-svg.toml").read_text().replace(
+        "vase-profile.svg", str(ROOT / "jobs/vase-profile.svg")) + "\n[fabrication]\nscale = 0.7\n")
+    proc = subprocess.Popen([sys.executable, "-m", "foldfab", "plot", str(job), "--device", "hp7475a",
+                             "--port", "sim://?time=fast"], cwd=ROOT, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    time.sleep(2.5)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("foldfab: stopped: stopped on request; tool lifted;")
+    assert "--resume" in last
+    token = last.split("--resume ")[1].split()[0]
+    assert (tmp_path / "state" / "foldfab" / "resume" / f"{token}.json").exists()
