@@ -10,7 +10,9 @@ the job is no longer this worker's (the plotter is stopped at once).
 
 A job that was interrupted before (its worker died, the cable was pulled) is resumed
 with :func:`foldfab.resume.resume_program` from the first stroke not acknowledged: no
-stroke is lost, only the interrupted one can be drawn twice.  Pauses (the flip of a
+stroke is lost.  Drawn twice are the interrupted stroke and, when a worker died, the
+strokes the plotter still had in its buffer (it draws them, but nobody saw them
+acknowledged): better twice than lost.  Pauses (the flip of a
 two-sided job) set the job ``waiting``; the :class:`WorkerUI` may answer on a terminal,
 and ``foldfab queue continue ID`` answers from anywhere.
 
@@ -148,13 +150,13 @@ class StartPoint:
     """None: every stroke was drawn before the interruption."""
     note: str
     confirmed: tuple[int, ...]
+    """For each pause of the streamed program: stored pauses confirmed once it is answered."""
     cut: int = 0
     """Offset in the stored program where the streamed text continues it."""
     prelude: int = 0
     """Bytes of the streamed program before that point (tool state, travel)."""
     stroke: int = 0
     """Strokes of the stored program already drawn."""
-    """For each pause of the streamed program: stored pauses confirmed once it is answered."""
 
     def original(self, offset: int) -> int:
         """Stored-program offset of streamed-program byte ``offset``."""
@@ -283,7 +285,7 @@ class Worker:
         if start.program is None:
             return self._end(job, heartbeat, "done", start.note)
         heartbeat.start()
-        tracker = _Tracker(self, job, start, heartbeat, cancel)
+        tracker = _Tracker(self, job, start, heartbeat)
         try:
             self.runner(start.program, device, job.port, events=tracker.event, cancel=cancel,
                         operator=tracker.pause)
@@ -359,9 +361,8 @@ def rehearse(store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOpt
 class _Tracker:
     """The engine's callbacks for one job: progress into the heartbeat, pauses into the queue."""
 
-    def __init__(self, worker: Worker, job: JobRecord, start: StartPoint, heartbeat: _Heartbeat,
-                 cancel: threading.Event):
-        self.worker, self.job, self.start, self.heartbeat, self.cancel = worker, job, start, heartbeat, cancel
+    def __init__(self, worker: Worker, job: JobRecord, start: StartPoint, heartbeat: _Heartbeat):
+        self.worker, self.job, self.start, self.heartbeat = worker, job, start, heartbeat
         self.acked: int | None = None
         self.done = self.total = start.stroke
         self.pauses_seen = 0

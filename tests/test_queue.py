@@ -13,6 +13,9 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
 from foldfab.cli import main
 from foldfab.devices import load_device
@@ -493,3 +496,122 @@ def test_snapshot_does_not_change_when_the_job_and_its_svg_change(tmp_path, caps
     assert after == before
     assert "corners = 8" in after.job_text and after.program.text.startswith("IN;")
     assert len(after.program.sections) >= 3
+
+
+# --- random sequences of operations ------------------------------------------------------------
+
+class QueueMachine(RuleBasedStateMachine):
+    """Any sequence of operators' and workers' actions keeps the queue's promises: the states
+    follow the transitions of :mod:`foldfab.queue`, a plotter runs one job at a time, a plotter
+    with an interrupted job runs nothing else, nothing is lost but what is removed."""
+
+    PORTS = ("sim://a", "sim://b")
+
+    def __init__(self):
+        super().__init__()
+        import tempfile
+
+        self.folder = tempfile.mkdtemp(prefix="foldfab-queue-machine-")
+        self.store = SqliteQueueStore(Path(self.folder) / "q.sqlite3")
+        self.workers = [WorkerId.current() for _ in range(3)]
+        self.states: dict[int, str] = {}
+        self.held: dict[int, WorkerId] = {}
+        self.ports: dict[int, str] = {}
+        self.snap = snapshot()
+
+    def teardown(self):
+        self.store.close()
+        shutil.rmtree(self.folder)
+
+    @rule(port=st.sampled_from(PORTS), copies=st.integers(1, 2), priority=st.integers(0, 2))
+    def add(self, port, copies, priority):
+        for job_id in self.store.add([NewJob(self.snap, port, priority, copies)]):
+            self.states[job_id], self.ports[job_id] = "queued", port
+
+    @rule(worker=st.integers(0, 2))
+    def claim(self, worker):
+        busy = {self.ports[j] for j, s in self.states.items() if s in ("running", "waiting")}
+        blocked = {self.ports[j] for j, s in self.states.items() if s == "interrupted"}
+        runnable = [j for j, s in self.states.items() if s in ("queued", "interrupted")
+                    and self.ports[j] not in busy and (s == "interrupted" or self.ports[j] not in blocked)]
+        claim = self.store.claim(self.workers[worker], 3600)
+        assert (claim is None) == (not runnable)
+        if claim is not None:
+            assert claim.job.id in runnable
+            self.states[claim.job.id], self.held[claim.job.id] = "running", self.workers[worker]
+
+    def _held(self):
+        return sorted(self.held)
+
+    @precondition(lambda self: self.held)
+    @rule(data=st.data(), end=st.sampled_from(["done", "failed", "cancelled", "interrupted"]))
+    def finish(self, data, end):
+        job_id = data.draw(st.sampled_from(self._held()))
+        assert self.store.finish(job_id, self.held.pop(job_id), end, "test")
+        self.states[job_id] = end
+
+    @precondition(lambda self: self.held)
+    @rule(data=st.data())
+    def pause_and_continue(self, data):
+        job_id = data.draw(st.sampled_from(self._held()))
+        if self.states[job_id] == "running":
+            assert self.store.wait_at_pause(job_id, self.held[job_id], "flip").state == "waiting"
+            self.states[job_id] = "waiting"
+        else:
+            self.store.continue_job(job_id, "test")
+            self.states[job_id] = "running"
+
+    @precondition(lambda self: self.held)
+    @rule(data=st.data())
+    def worker_dies(self, data):
+        job_id = data.draw(st.sampled_from(self._held()))
+        dead = self.held[job_id]
+        with sqlite3.connect(self.store.path) as db:
+            db.execute("UPDATE jobs SET lease_expires = 0 WHERE worker = ?", (str(dead),))
+        for held in [j for j, w in self.held.items() if w == dead]:
+            cancel = self.store.job(held).cancel_requested
+            self.states[held] = "cancelled" if cancel else "interrupted"
+            del self.held[held]
+        self.store.log(job_id, "test", "a write expires the dead worker's leases")
+
+    @precondition(lambda self: self.states)
+    @rule(data=st.data())
+    def cancel(self, data):
+        job_id = data.draw(st.sampled_from(sorted(self.states)))
+        state = self.states[job_id]
+        if state in ("done", "failed", "cancelled") or (state in ("running", "waiting")
+                                                         and self.store.job(job_id).cancel_requested):
+            if state not in ("running", "waiting"):
+                with pytest.raises(FoldfabError):
+                    self.store.cancel(job_id)
+            return
+        job = self.store.cancel(job_id)
+        if state in ("queued", "interrupted"):
+            self.states[job_id] = "cancelled"
+        assert job.state == self.states[job_id]
+
+    @precondition(lambda self: self.states)
+    @rule(data=st.data(), restart=st.booleans())
+    def retry_or_remove(self, data, restart):
+        job_id = data.draw(st.sampled_from(sorted(self.states)))
+        state = self.states[job_id]
+        if state in ("failed", "cancelled", "interrupted"):
+            assert self.store.retry(job_id, restart).state == "queued"
+            self.states[job_id] = "queued"
+        elif state in ("running", "waiting"):
+            with pytest.raises(FoldfabError, match="cancel it first"):
+                self.store.remove(job_id)
+        else:
+            self.store.remove(job_id)
+            del self.states[job_id]
+
+    @invariant()
+    def states_match_and_plotters_run_one_job(self):
+        jobs = self.store.jobs()
+        assert {j.id: j.state for j in jobs} == self.states
+        for port in self.PORTS:
+            assert len([j for j in jobs if j.port == port and j.state in ("running", "waiting")]) <= 1
+
+
+QueueMachine.TestCase.settings = settings(max_examples=40, stateful_step_count=25, deadline=None)
+test_queue_state_machine = QueueMachine.TestCase
