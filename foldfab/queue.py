@@ -467,11 +467,15 @@ class SqliteQueueStore:
                 message = f"{where}: {exc}; nothing was changed"
             raise FoldfabError(message) from None
 
-    @contextmanager
-    def _read(self) -> Iterator[sqlite3.Connection]:
-        """One consistent read (a file that does not exist yet is not created)."""
+    def _must_exist(self) -> None:
+        """Only adding creates the queue file; other commands on a missing one say so."""
         if not self.path.exists():
             raise FoldfabError(f"queue {self.path} is empty: it does not exist yet (foldfab queue add creates it)")
+
+    @contextmanager
+    def _read(self) -> Iterator[sqlite3.Connection]:
+        """One consistent read."""
+        self._must_exist()
         with self._lock, self._errors():
             db = self._connect()
             db.execute("BEGIN")
@@ -481,8 +485,10 @@ class SqliteQueueStore:
                 db.execute("COMMIT")
 
     @contextmanager
-    def _write(self) -> Iterator[sqlite3.Connection]:
+    def _write(self, create: bool = False) -> Iterator[sqlite3.Connection]:
         """One transaction that takes the write lock first, then expires dead workers' leases."""
+        if not create:
+            self._must_exist()
         with self._lock, self._errors():
             db = self._connect()
             db.execute("BEGIN IMMEDIATE")
@@ -549,7 +555,7 @@ class SqliteQueueStore:
 
     def add(self, jobs: Sequence[NewJob]) -> list[int]:
         ids = []
-        with self._write() as db:
+        with self._write(create=True) as db:
             now = time.time()
             for new in jobs:
                 snap = new.snapshot
@@ -653,6 +659,8 @@ class SqliteQueueStore:
     def clear(self, states: Sequence[str]) -> int:
         if not set(states) <= set(FINISHED):
             raise ValueError(f"only finished jobs ({', '.join(FINISHED)}) can be cleared")
+        if not self.path.exists():
+            return 0
         with self._write() as db:
             return self._delete(db, f"state IN ({', '.join('?' * len(states))})", tuple(states))
 
@@ -678,6 +686,8 @@ class SqliteQueueStore:
 
     def claim(self, worker: WorkerId, lease: float, device: str | None = None, port: str | None = None,
               exclude: Sequence[int] = ()) -> Claim | None:
+        if not self.path.exists():
+            return None
         params = self._params(device=device, port=port, exclude=json.dumps(list(exclude)))
         while True:
             with self._write() as db:

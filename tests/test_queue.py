@@ -434,8 +434,13 @@ def test_cli_add_list_show_and_actions(tmp_path, capsys):
 def test_default_queue_location(tmp_path, monkeypatch, capsys):
     monkeypatch.delenv("FOLDFAB_QUEUE", raising=False)
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "data"))
-    assert run_cli(capsys, "queue", "list")[1] == f"no jobs in {tmp_path / 'data' / 'foldfab' / 'queue.sqlite3'}\n"
-    assert not (tmp_path / "data").exists()  # reading never creates the file
+    default = tmp_path / "data" / "foldfab" / "queue.sqlite3"
+    assert run_cli(capsys, "queue", "list")[1] == f"no jobs in {default}\n"
+    assert run_cli(capsys, "queue", "run")[1] == f"nothing to run in {default}\n"
+    assert run_cli(capsys, "queue", "clear", "--done")[1] == "removed 0 done jobs\n"
+    code, _, err = run_cli(capsys, "queue", "cancel", "3")
+    assert code == 2 and "does not exist yet (foldfab queue add creates it)" in err
+    assert not (tmp_path / "data").exists()  # only add creates the file
     monkeypatch.setenv("FOLDFAB_QUEUE", str(tmp_path / "env.sqlite3"))
     run_cli(capsys, "queue", "add", str(HEXAGON), "--device", "graphtec-ce6000", "--port", "sim://x")
     assert (tmp_path / "env.sqlite3").exists()
