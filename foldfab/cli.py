@@ -468,14 +468,25 @@ class QueueConsole:
         print(f"job {job.id} {state}: {message}", flush=True)
 
 
+def _stop_like_ctrl_c(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
 def cmd_queue_run(args: argparse.Namespace) -> int:
-    """Plot queued jobs (or rehearse them on simulated plotters with --dry-run)."""
+    """Plot queued jobs (or rehearse them on simulated plotters with --dry-run).  SIGTERM (a service
+    manager's stop) acts as Ctrl-C: the tool is lifted and the job is left interrupted, to resume."""
+    import signal
+
     from foldfab.errors import FoldfabError
     from foldfab.worker import Worker, WorkerOptions, rehearse
 
     options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
     store, console = _queue_store(args), QueueConsole(args.json)
-    summary = rehearse(store, console, options) if args.dry_run else Worker(store, console, options).run()
+    previous = signal.signal(signal.SIGTERM, _stop_like_ctrl_c)
+    try:
+        summary = rehearse(store, console, options) if args.dry_run else Worker(store, console, options).run()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     if not summary.ended:
         print(f"nothing to run in {store.location}" + (" for these filters" if args.device or args.port else ""))
         return 0

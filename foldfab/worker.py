@@ -246,17 +246,22 @@ class Worker:
         self.store, self.ui, self.options, self.runner = store, ui, options, runner
         self.id = WorkerId.current()
         self.interrupted: dict[int, float] = {}  # jobs this worker saw interrupted, and when
+        self.stopping = threading.Event()
+
+    def stop(self) -> None:
+        """Claim no more jobs (the one running goes on to its end)."""
+        self.stopping.set()
 
     def run(self) -> WorkerSummary:
         """Claim and plot jobs until the mode says stop; Ctrl-C interrupts the job and stops."""
         summary = WorkerSummary()
-        while True:
+        while not self.stopping.is_set():
             claim = self.store.claim(self.id, self.options.lease, self.options.device, self.options.port,
                                      exclude=self._skipped())
             if claim is None:
                 if self.options.mode != "follow":
                     return summary
-                time.sleep(self.options.poll)
+                self.stopping.wait(self.options.poll)
                 continue
             state = self.run_job(claim)
             summary.add(claim.job.id, state)
@@ -264,6 +269,7 @@ class Worker:
                 self.interrupted[claim.job.id] = time.monotonic()
             if self.options.mode == "once":
                 return summary
+        return summary
 
     def _skipped(self) -> list[int]:
         if self.options.mode != "follow":

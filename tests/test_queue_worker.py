@@ -196,10 +196,13 @@ def test_once_and_filters(store, snapshots):
 def test_follow_waits_for_new_jobs(store, snapshots):
     plotter = FakePlotter()
     worker = Worker(store, Console(), WorkerOptions(mode="follow", poll=0.05), runner=plotter)
-    in_thread(worker)
+    thread = in_thread(worker)
     time.sleep(0.2)
     store.add([NewJob(snapshots[("grbl", "force")], "sim://a")])
     wait_for(lambda: store.job(1).state == "done")
+    worker.stop()
+    thread.join(5)
+    assert not thread.is_alive()
 
 
 def test_two_sided_job_waits_until_queue_continue(store, snapshots, capsys):
@@ -471,3 +474,21 @@ def test_cancel_of_a_running_job_lifts_the_tool_on_the_real_engine(store, snapsh
     plotter = simulators[0]
     assert plotter.machine.stroke is None  # the pen is up
     assert 0 < len(plotter.strokes) < len(original_strokes(snap))
+
+
+def test_sigterm_stops_the_worker_safely_and_the_job_resumes(tmp_path):
+    queue = ["--queue", str(tmp_path / "q.sqlite3")]
+    perforated = tmp_path / "perforated.toml"
+    perforated.write_text(HEXAGON.read_text().replace('strategy = "force"', 'strategy = "perforate"'))
+    foldfab("queue", "add", str(perforated), "--device", "hp7475a", "--port", "sim://hp7475a?time=fast&speedup=5",
+            *queue)
+    store = SqliteQueueStore(tmp_path / "q.sqlite3")
+    worker = subprocess.Popen(FOLDFAB + ["queue", "run", *queue], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True)
+    wait_for(lambda: store.job(1).acked_bytes > 0, timeout=60)
+    worker.send_signal(signal.SIGTERM)
+    out, err = worker.communicate(timeout=60)
+    assert worker.returncode == 130, err
+    job = store.job(1)
+    assert job.state == "interrupted" and "the worker was stopped: stopped by Ctrl-C" in job.reason
+    assert "could not lift" not in job.reason and 0 < job.acked_bytes < job.program_bytes
