@@ -492,3 +492,31 @@ def test_sigterm_stops_the_worker_safely_and_the_job_resumes(tmp_path):
     job = store.job(1)
     assert job.state == "interrupted" and "the worker was stopped: stopped by Ctrl-C" in job.reason
     assert "could not lift" not in job.reason and 0 < job.acked_bytes < job.program_bytes
+
+
+@pytest.mark.parametrize("typed, state", [(b"\n", "done"), (b"c\n", "cancelled")])
+def test_flip_answered_on_the_workers_terminal(tmp_path, typed, state):
+    import os
+    import pty
+
+    queue = ["--queue", str(tmp_path / "q.sqlite3")]
+    two_sided = tmp_path / "two.toml"
+    two_sided.write_text(HEXAGON.read_text().replace('strategy = "force"', 'strategy = "two-sided"'))
+    foldfab("queue", "add", str(two_sided), "--device", "grbl", "--port", "sim://grbl?time=instant", *queue)
+    typist, terminal = pty.openpty()  # the worker reads the terminal side; the test types on the other
+    worker = subprocess.Popen(FOLDFAB + ["queue", "run", *queue], stdin=terminal, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+    try:
+        for line in worker.stdout:
+            if line.startswith("press Enter to continue"):
+                break
+        os.write(typist, typed)
+        out, err = worker.communicate(timeout=60)
+    finally:
+        os.close(typist)
+        os.close(terminal)
+    store = SqliteQueueStore(tmp_path / "q.sqlite3")
+    assert store.job(1).state == state, out + err
+    kinds = [e.kind for e in store.events(1)]
+    assert kinds == (["queued", "started", "pause", "continued", "done"] if state == "done"
+                     else ["queued", "started", "pause", "cancelled"])
