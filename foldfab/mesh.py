@@ -39,8 +39,10 @@ def _weld(points: np.ndarray, tol: float) -> np.ndarray:
 def _candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Pairs (i < j) of boxes that share a cell of a uniform grid sized to the boxes."""
     n = len(lo)
-    extent = (hi - lo).max(axis=1)
-    cell = max(float(np.median(extent)), float(np.ptp(np.vstack([lo, hi]), axis=0).max()) * 1e-6, 1e-12)
+    # One cell size per axis: the boxes' median extent along it.  Thin, long faces (a finely
+    # sampled profile) would crowd cubic cells sized to their length with millions of pairs.
+    floor = max(float(np.ptp(np.vstack([lo, hi]), axis=0).max()) * 1e-6, 1e-12)
+    cell = np.maximum(np.median(hi - lo, axis=0), floor)
     while True:
         c_lo = np.floor(lo / cell).astype(np.int64)
         c_hi = np.floor(hi / cell).astype(np.int64)
