@@ -432,10 +432,10 @@ class QueueConsole:
     """The worker's terminal: job lines, the progress display of ``foldfab plot``, and pauses
     answered with Enter (without a terminal: ``foldfab queue continue ID``)."""
 
-    def __init__(self, as_json: bool = False):
+    def __init__(self):
         from foldfab.progress import reporter
 
-        self.report = reporter(sys.stdout, as_json)
+        self.report = reporter(sys.stdout)
         self.terminal = sys.stdin.isatty()
 
     def job_started(self, job, note: str) -> None:
@@ -481,7 +481,7 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
     from foldfab.worker import Worker, WorkerOptions, rehearse
 
     options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
-    store, console = _queue_store(args), QueueConsole(args.json)
+    store, console = _queue_store(args), QueueConsole()
     previous = signal.signal(signal.SIGTERM, _stop_like_ctrl_c)
     try:
         summary = rehearse(store, console, options) if args.dry_run else Worker(store, console, options).run()
@@ -576,7 +576,6 @@ def _add_queue_parser(sub) -> None:
                      help="stream every runnable job to a simulated plotter of its device; the queue is not changed")
     run.add_argument("--lease", type=float, default=DEFAULT_LEASE, metavar="SECONDS",
                      help=f"a job whose worker is silent this long is interrupted (default {DEFAULT_LEASE:g})")
-    run.add_argument("--json", action="store_true", help="progress as JSON lines")
     run.set_defaults(func=cmd_queue_run)
 
 

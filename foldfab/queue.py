@@ -19,7 +19,8 @@ States and transitions (every change is one ``BEGIN IMMEDIATE`` transaction)::
 
 A worker holds a **lease** on its job and renews it (the heartbeat); a job whose
 lease expired, or whose worker process on this machine is gone, becomes
-interrupted at the next write to the queue.  Claims are atomic: a job runs on one
+interrupted at the next write to the queue.  Leases compare wall clocks, so hosts
+that share a queue need synchronized clocks (NTP).  Claims are atomic: a job runs on one
 worker, and a plotter (its port) runs one job at a time.  A plotter with an
 interrupted job (a half-drawn sheet on it) runs nothing else until that job is
 resumed, cancelled or removed.
