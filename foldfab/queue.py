@@ -32,7 +32,6 @@ This module is imported by ``foldfab queue list``: standard library only.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import secrets
@@ -84,7 +83,9 @@ class Snapshot:
     @property
     def sha256(self) -> str:
         """SHA-256 of the program text."""
-        return hashlib.sha256(self.program.encode()).hexdigest()
+        from foldfab.resume import program_hash
+
+        return program_hash(self.program)
 
 
 @dataclass(frozen=True)
