@@ -586,7 +586,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     from foldfab.devices import load_device
     from foldfab.errors import FoldfabError
-    from foldfab.sim import parse_options
+    from foldfab.sim import create_simulator, parse_options
     from foldfab.sim.pty import serve_pty
 
     device = load_device(args.device)
@@ -600,10 +600,11 @@ def cmd_sim(args: argparse.Namespace) -> int:
     outputs = [(path, kind) for path, kind in ((args.record, "json"), (args.svg, "svg")) if path]
     for path, kind in outputs:
         _check_output(Path(path), "--record" if kind == "json" else "--svg", (f".{kind}",))
+    sim = create_simulator(device, options)
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        sim = serve_pty(device, options, lambda path: print(path, flush=True), stop)
+        serve_pty(sim, lambda path: print(path, flush=True), stop)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -78,7 +78,7 @@ class Simulator:
         self.block_end: float | None = None  # when the running head block ends
         self.remaining: float | None = None  # of the head block, while frozen
         self.frozen: set[str] = set()  # "stall", "hold"
-        self.deferred: list[int] = []  # special bytes that arrived during a stall
+        self.deferred: list[Callable[[], None]] = []  # answers held back by a stall
         self.position = (0.0, 0.0)  # device units, where the last block ended
         self.stop_requested = False  # flow control: buffer above high water
         self.xoff = False  # the last XON/XOFF sent was XOFF
@@ -86,11 +86,13 @@ class Simulator:
         self.stall_at = 4 * self.size if options.stall_at is None else options.stall_at
         self.stall_done = options.stall == 0
         self.disconnected = False
+        self.unplug_at = options.disconnect_after  # None once the cable has been pulled
         self.wire_free = 0.0  # when the host's next byte can start on the wire
         self.host_flow: frozenset[str] = frozenset()  # what the host's driver obeys
         self.swallow_flow_bytes = False  # the host's driver eats XON/XOFF (port.xonxoff)
         self._rng = np.random.default_rng(options.seed) if options.noise else None
         self._idle = 0.0
+        self._parked: PauseRecord | None = None  # the pause idle time is being added to
         self._overrunning = False
         serial = device.serial
         self.configure_wire(serial.baudrate, serial.bytesize, serial.parity, serial.stopbits)
@@ -214,8 +216,8 @@ class Simulator:
             self.stall_until = None
             self._thaw("stall")
             deferred, self.deferred = self.deferred, []
-            for byte in deferred:
-                self._special(byte)
+            for action in deferred:
+                action()
             return
         block = self.planner.popleft()
         self.block_end = None
@@ -242,6 +244,8 @@ class Simulator:
             stats.busy_time += dt
         elif stats.first_byte is not None:
             self._idle += dt
+        if self.frozen or self.block_end is not None:
+            self._parked = None
         self.t = until
 
     def _enqueue(self, block: Block) -> None:
@@ -301,8 +305,8 @@ class Simulator:
         if self.flow in ("xonxoff", "rtscts") and not self.stop_requested:
             limits.append(self.high - len(self.rx))
         received = self.stats.bytes_received
-        if self.options.disconnect_after is not None:
-            limits.append(self.options.disconnect_after - received)
+        if self.unplug_at is not None:
+            limits.append(self.unplug_at - received)
         if not self.stall_done:
             limits.append(self.stall_at - received)
         return max(1, min(limits))
@@ -318,10 +322,7 @@ class Simulator:
             stats.bytes_corrupted += int(np.count_nonzero(
                 np.frombuffer(clean, np.uint8) != np.frombuffer(data, np.uint8)))
         if len(data) == 1 and (self._in_special() or self.SPECIAL.match(data)):
-            if "stall" in self.frozen:
-                self.deferred.append(data[0])
-            else:
-                self._special(data[0])
+            self._special(data[0])
         else:
             keep = data[:max(self.free, 0)]
             lost = len(data) - len(keep)
@@ -336,8 +337,8 @@ class Simulator:
             stats.max_fill = max(stats.max_fill, len(self.rx))
         self._spend(last)
         received = stats.bytes_received
-        if self.options.disconnect_after is not None and received >= self.options.disconnect_after:
-            self.disconnected = True
+        if self.unplug_at is not None and received >= self.unplug_at:
+            self.disconnected, self.unplug_at = True, None
         if not self.stall_done and received >= self.stall_at:
             self.stall_done, self.stall_until = True, self.t + self.options.stall
             self._freeze("stall")
@@ -353,7 +354,10 @@ class Simulator:
                 stats.starved_time += self._idle
             elif kind != "ended":
                 stats.paused_time += self._idle
-                stats.pauses.append(PauseRecord(t - self._idle, self._idle, kind))
+                if self._parked is None or self._parked.reason != kind:
+                    self._parked = PauseRecord(t - self._idle, 0.0, kind)
+                    stats.pauses.append(self._parked)
+                self._parked.duration += self._idle
             self._idle = 0.0
 
     def _corrupt(self, data: bytes) -> bytes:
@@ -424,7 +428,15 @@ class Simulator:
         return False
 
     def _special(self, byte: int) -> None:
+        """A special byte arrived (acting on it waits while the device is stalled)."""
         raise NotImplementedError
+
+    def _when_running(self, action: Callable[[], None]) -> None:
+        """Do ``action`` now, or when the stall is over."""
+        if "stall" in self.frozen:
+            self.deferred.append(action)
+        else:
+            action()
 
     def _overrun(self) -> None:
         """Bytes were just lost (a device may flag an error)."""

@@ -57,6 +57,7 @@ class GrblController(Simulator):
         self.waiting: tuple[GcodeLine, int] | None = None  # read, waits for the planner
         self.lines = 0
         self.ok_on_resume = False  # M0's ok is sent by the ~ that ends it
+        self.dwelling = False  # G4: nothing is read until the dwell is over
         self.ended = False  # M2 executed, nothing since
         self.hold: PauseRecord | None = None
         self.z = 0.0 if isinstance(device.gcode.pen_up, str) else device.gcode.pen_up
@@ -90,12 +91,12 @@ class GrblController(Simulator):
         self.z = block.z
 
     def _hungry(self) -> bool:
-        return not self.frozen and self.waiting is None
+        return not self.frozen and not self.dwelling and self.waiting is None
 
     # --- lines ----------------------------------------------------------------------------
 
     def _work(self) -> None:
-        while not self.frozen:
+        while not self.frozen and not self.dwelling:
             if self.waiting is not None:
                 if not self._execute(*self.waiting):
                     return
@@ -154,8 +155,9 @@ class GrblController(Simulator):
         self.ended = 2 in m_words
         if dwell:
             seconds = next((value for letter, value in line.words if letter == "P"), 0.0)
+            self.dwelling = True
             self._enqueue(Block(seconds, self.machine.position, self.machine.position, 0.0,
-                                self.machine.mark(), done=lambda: self.reply("ok")))
+                                self.machine.mark(), done=self._dwelt))
         elif 0 in m_words:
             self._hold("M0")
             self.ok_on_resume = True
@@ -165,6 +167,10 @@ class GrblController(Simulator):
         else:
             self.reply("ok")
         return True
+
+    def _dwelt(self) -> None:
+        self.dwelling = False
+        self.reply("ok")
 
     def _system(self, command: str) -> None:
         if command == "$X":
@@ -212,6 +218,9 @@ class GrblController(Simulator):
     # --- realtime -------------------------------------------------------------------------
 
     def _special(self, byte: int) -> None:
+        self._when_running(lambda: self._realtime(byte))
+
+    def _realtime(self, byte: int) -> None:
         if byte == 0x18:
             self.soft_reset()
         elif byte == ord("?"):
@@ -268,7 +277,7 @@ class GrblController(Simulator):
         self._clear_planner()
         self._free(self.base + len(self.rx))
         self.line.clear()
-        self.waiting, self.ok_on_resume, self.ended = None, False, False
+        self.waiting, self.ok_on_resume, self.ended, self.dwelling = None, False, False, False
         self.reply(BANNER)
         if self.alarm:
             self.reply("[MSG:'$H'|'$X' to unlock]")

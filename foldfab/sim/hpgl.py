@@ -127,19 +127,21 @@ class HPGLPlotter(Simulator):
 
     def _special(self, byte: int) -> None:
         for command in self.escapes.feed(bytes([byte])):
-            name = command.name
-            if name == "ESC.B":
-                self.reply(str(self.free))
-            elif name == "ESC.L":
-                self.reply(str(self.size))
-            elif name == "ESC.E":
-                self.reply(str(self.io_error))
-                self.io_error = 0
-            elif name == "ESC.O":
-                self.reply("8" if not self.rx and not self.planner else "0")
-            elif name not in ACCEPTED_DEVICE_CONTROL:
-                self.io_error = 11
-                self.stats.errors.append("ESC.E 11")
+            self._when_running(lambda name=command.name: self._device_control(name))
+
+    def _device_control(self, name: str) -> None:
+        if name == "ESC.B":
+            self.reply(str(self.free))
+        elif name == "ESC.L":
+            self.reply(str(self.size))
+        elif name == "ESC.E":
+            self.reply(str(self.io_error))
+            self.io_error = 0
+        elif name == "ESC.O":
+            self.reply("8" if not self.rx and not self.planner else "0")
+        elif name not in ACCEPTED_DEVICE_CONTROL:
+            self.io_error = 11
+            self.stats.errors.append("ESC.E 11")
 
     def _overrun(self) -> None:
         self.io_error = 16

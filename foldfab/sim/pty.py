@@ -1,8 +1,8 @@
 """A simulated plotter on a pseudo-terminal: any program talks to it as to hardware.
 
 :func:`serve_pty` creates a pty, reports the path of its terminal side (``/dev/pts/N``,
-which ``serial.Serial`` opens like a USB adapter) and serves the simulator there until
-``stop`` is set.  The server plays the wire: it takes the host's bytes off the pty no
+which ``serial.Serial`` opens like a USB adapter) and serves a simulator
+(:func:`foldfab.sim.create_simulator`) there until ``stop`` is set.  The server plays the wire: it takes the host's bytes off the pty no
 faster than the baud rate allows, so the host's ``write`` blocks in the kernel as it
 would on a real port, and it honours the flow control the host set on its side of the
 pty (``IXON`` for XON/XOFF, ``CRTSCTS`` for RTS/CTS, which a pty has no lines for) by
@@ -21,28 +21,23 @@ import tty
 from typing import TYPE_CHECKING, Callable
 
 from foldfab.errors import FoldfabError
-from foldfab.sim import create_simulator
 from foldfab.sim.clock import IDLE_WAIT
 
 if TYPE_CHECKING:
-    from foldfab.devices import DeviceProfile
     from foldfab.sim.device import Simulator
-    from foldfab.sim.options import SimOptions
 
 READ_CHUNK = 4096
 MIN_WAIT = 0.0005  # wall seconds: the shortest sleep of the serving loop
 
 
-def serve_pty(device: DeviceProfile, options: SimOptions, ready: Callable[[str], None],
-              stop: threading.Event) -> Simulator:
-    """Serve ``device``'s simulator on a new pty until ``stop`` is set; returns the simulator.
+def serve_pty(sim: Simulator, ready: Callable[[str], None], stop: threading.Event) -> None:
+    """Serve ``sim`` on a new pty until ``stop`` is set (or the cable is pulled).
 
     ``ready(path)`` is called with the terminal's path once it can be opened.
     """
-    if options.time == "instant":
+    if sim.clock.rate is None:
         raise FoldfabError("a simulator on a pty runs on the wall clock: use time=real or "
                            "time=fast (instant needs the sim:// port)")
-    sim = create_simulator(device, options)
     master, slave = os.openpty()
     try:
         tty.setraw(slave)
@@ -53,7 +48,6 @@ def serve_pty(device: DeviceProfile, options: SimOptions, ready: Callable[[str],
     finally:
         os.close(master)
         os.close(slave)
-    return sim
 
 
 def _serve(sim: Simulator, master: int, slave: int, stop: threading.Event) -> None:
