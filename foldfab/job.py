@@ -8,11 +8,15 @@ silently falls back to a default.
 
 from __future__ import annotations
 
+import copy
+import json
 import math
+import os
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from foldfab.errors import FoldfabError
 
@@ -283,3 +287,98 @@ def load_job(path: str | Path) -> Job:
     except (OSError, UnicodeDecodeError) as exc:
         raise FoldfabError(f"{path}: cannot read job file: {exc}") from None
     return parse_job(text, path)
+
+
+# --- writing -------------------------------------------------------------------------------
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+TABLE_ORDER = ("design", "profile", "trajectory", "crease", "fabrication")
+
+
+def job_data(job: Job, folder: str | Path | None = None) -> dict[str, Any]:
+    """The job as the plain tables of its TOML; SVG paths relative to ``folder`` (default: the job's)."""
+    folder = Path(folder) if folder is not None else job.path.parent
+
+    def svg(source: SvgSource) -> dict[str, Any]:
+        out: dict[str, Any] = {"svg": Path(os.path.relpath(source.file, folder.resolve())).as_posix(),
+                               "path": source.path}
+        if source.samples is not None:
+            out["samples"] = source.samples
+        if source.tolerance is not None:
+            out["tolerance"] = source.tolerance
+        return out
+
+    profile = ({"points": [list(p) for p in job.profile.points]} if job.profile.points is not None
+               else svg(job.profile.svg))
+    profile["offset"] = list(job.profile.offset)
+    spec = job.trajectory
+    if spec.svg is not None:
+        trajectory = {"template": "polyline", **svg(spec.svg)}
+    elif spec.template == "polyline":
+        trajectory = {"template": "polyline", "points": [list(p) for p in spec.points]}
+    else:
+        trajectory = {"template": spec.template, **spec.params}
+    data = {"design": {"name": job.name}, "profile": profile, "trajectory": trajectory,
+            "crease": {"flat_angle": job.crease.flat_angle, "glue_tab": job.crease.glue_tab}}
+    if job.fabrication:
+        data["fabrication"] = copy.deepcopy(job.fabrication)
+    return data
+
+
+def job_to_toml(job: Job, folder: str | Path | None = None) -> str:
+    """TOML text that :func:`parse_job` reads back as ``job`` (comments are not kept)."""
+    return toml_text(job_data(job, folder))
+
+
+def toml_text(data: Mapping[str, Any]) -> str:
+    """TOML of nested tables of strings, numbers, booleans, lists and tables; job tables first."""
+    if not isinstance(data, Mapping):
+        raise FoldfabError(f"a job is a table of tables, got {_type_name(data)}")
+    order = [k for k in TABLE_ORDER if k in data] + [k for k in data if k not in TABLE_ORDER]
+    lines: list[str] = []
+    for key in order:
+        if not isinstance(data[key], Mapping):
+            raise FoldfabError(f"[{key}]: expected a table, got {_type_name(data[key])}")
+        _table_lines(lines, [key], data[key])
+    return "\n".join(lines).lstrip("\n") + "\n"
+
+
+def _table_lines(lines: list[str], name: list[str], table: Mapping[str, Any]) -> None:
+    lines.extend(["", "[" + ".".join(map(_key, name)) + "]"])
+    for key, value in table.items():
+        if not isinstance(value, Mapping):
+            lines.append(f"{_key(key)} = {_value(value, '.'.join(name + [key]))}")
+    for key, value in table.items():
+        if isinstance(value, Mapping):
+            _table_lines(lines, name + [key], value)
+
+
+def _key(key: Any) -> str:
+    if not isinstance(key, str):
+        raise FoldfabError(f"a key must be a string, got {_type_name(key)} {key!r}")
+    return key if _BARE_KEY.fullmatch(key) else _string(key)
+
+
+def _string(text: str) -> str:
+    if any(0xD800 <= ord(c) <= 0xDFFF for c in text):
+        raise FoldfabError(f"{text!r}: a lone surrogate cannot be written to a TOML file")
+    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
+
+
+def _value(value: Any, where: str) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else ("nan" if math.isnan(value) else ("inf" if value > 0 else "-inf"))
+    if isinstance(value, str):
+        return _string(value)
+    if isinstance(value, (list, tuple)):
+        items = [_value(item, f"{where}[{i}]") for i, item in enumerate(value)]
+        if len(items) > 4 and all(isinstance(item, (list, tuple)) for item in value):
+            return "[\n" + "".join(f"  {item},\n" for item in items) + "]"  # one point per line
+        return "[" + ", ".join(items) + "]"
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{_key(k)} = {_value(v, f'{where}.{k}')}" for k, v in value.items()) + "}"
+    raise FoldfabError(f"{where}: cannot be written to TOML: {_type_name(value)} {value!r}")
