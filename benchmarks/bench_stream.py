@@ -1,0 +1,137 @@
+"""Streaming: link use, plotter starvation, host CPU, on the simulated plotters.
+
+Run by hand:  python benchmarks/bench_stream.py   (about three minutes)
+
+1. Link-bound: every device at 9600 baud with motion made instant (a profile copy with
+   huge speeds and no pen-lift time), so the wire is the only limit; ``time=real``
+   simulator, so the host's own turnaround counts.  foldfab's sender side by side with
+   send-and-wait (one command, wait for its reply: ``ok`` for GRBL, the answer to an
+   ``OE;`` sent after each HP-GL command).  Throughput = program bytes / plot time,
+   as a share of the line rate (baud / 10 for 8N1).
+2. Motion-bound: the real profiles, ``time=instant``: the plotter's idle time while more
+   of the job was still to come (``starved``) as a share of its plot time.
+3. Host CPU while the plotter works: ``foldfab sim NAME --pty`` at real speed in another
+   process, foldfab streaming for a fixed time; process CPU over wall time.
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from foldfab.design import load_design
+from foldfab.devices import load_device
+from foldfab.fabrication import fabricate, parse_fabrication
+from foldfab.stream import StreamStopped, stream
+from foldfab.transport import open_port
+
+ROOT = Path(__file__).resolve().parent.parent
+DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
+SPEC = {"sheet": "A3", "margin": 5, "scale": 0.4}
+BAUD = 9600
+
+
+def instant_motion(name: str, folder: Path) -> Path:
+    """A copy of a built-in profile whose motion takes no time at all."""
+    text = (ROOT / "devices" / f"{name}.toml").read_text()
+    text = re.sub(r"(?ms)^\[limits\]\n.*?(?=^\[)", "", text)
+    text = re.sub(r"(?m)^(draw_speed|travel_speed|speed|z_speed) = .*$", r"\1 = 100000", text)
+    text = re.sub(r"(?m)^acceleration = .*$", "acceleration = 1000000000", text)
+    text = re.sub(r"(?m)^pen_lift_time = .*$", "pen_lift_time = 0", text)
+    path = folder / f"{name}-instant.toml"
+    path.write_text(text)
+    return path
+
+
+def program_for(device, job: str = "vase-svg", strategy: str = "force"):
+    spec = parse_fabrication({**SPEC, "strategy": strategy}, job)
+    return fabricate(load_design(ROOT / "jobs" / f"{job}.toml"), device, spec).program
+
+
+def send_and_wait(port, program, device) -> None:
+    """One command, then wait for the plotter's reply to it."""
+    port.timeout = 5.0
+    if device.protocol == "gcode":
+        while b"Grbl" not in port.read_until(b"]\r\n"):
+            pass
+        for line in program.text.split("\n")[:-1]:
+            port.write(line.encode() + b"\n")
+            while (reply := port.read_until(b"\r\n").strip()).startswith(b"["):
+                pass  # [MSG:...]
+            assert reply == b"ok", reply
+        return
+    for command in re.findall(r"[^;]*;", program.text):
+        port.write(command.encode() + b"OE;")
+        assert port.read_until(b"\r").strip() == b"0"
+
+
+def link_bound() -> None:
+    print(f"1. link-bound: {BAUD} baud, motion instant (time=real simulator, vase-svg job)")
+    print(f"{'device':<18}{'flow control':<14}{'bytes':>7}{'foldfab':>10}{'send-and-wait':>15}")
+    with tempfile.TemporaryDirectory() as folder:
+        for name in DEVICES:
+            device = load_device(instant_motion(name, Path(folder)))
+            program = program_for(device)
+            shares = []
+            for sender in (stream, send_and_wait):
+                port = open_port("sim://?time=real&sheet=A3", device, baudrate=BAUD)
+                sender(port, program, device)
+                stats = port.simulator.stats
+                port.close()
+                assert stats.bytes_lost == 0
+                shares.append(len(program.text) / stats.plot_time / (BAUD / 10))
+            print(f"{name:<18}{device.buffer.flow_control:<14}{len(program.text):>7}"
+                  f"{shares[0]:>10.1%}{shares[1]:>15.1%}")
+
+
+def motion_bound() -> None:
+    print("\n2. motion-bound: the profiles' own speeds (time=instant simulator); starved = idle "
+          "with more to come")
+    print(f"{'device':<18}{'job':<22}{'plot time s':>12}{'starved s':>11}{'starved':>9}")
+    for name in DEVICES:
+        device = load_device(name)
+        for job, strategy in (("vase-svg", "force"), ("star", "perforate")):
+            program = program_for(device, job, strategy)
+            port = open_port("sim://?time=instant&sheet=A3", device)
+            stream(port, program, device)
+            stats = port.simulator.stats
+            port.close()
+            assert stats.bytes_lost == 0
+            print(f"{name:<18}{job + ' ' + strategy:<22}{stats.plot_time:>12.1f}{stats.starved_time:>11.2f}"
+                  f"{stats.starved_time / stats.plot_time:>9.2%}")
+
+
+def host_cpu(seconds: float = 10.0) -> None:
+    print(f"\n3. host CPU while the plotter works: pty simulator at real speed, {seconds:g} s of plotting")
+    print(f"{'device':<18}{'flow control':<14}{'CPU / wall':>11}")
+    for name in DEVICES:
+        device = load_device(name)
+        program = program_for(device)
+        proc = subprocess.Popen([sys.executable, "-m", "foldfab", "sim", name, "--pty", "-o", "sheet=A3"],
+                                stdout=subprocess.PIPE, text=True, cwd=ROOT)
+        port = open_port(proc.stdout.readline().strip(), device)
+        cancel = threading.Event()
+        timer = threading.Timer(seconds, cancel.set)
+        wall, cpu = time.monotonic(), time.process_time()
+        timer.start()
+        try:
+            stream(port, program, device, cancel=cancel)
+        except StreamStopped:
+            pass
+        share = (time.process_time() - cpu) / (time.monotonic() - wall)
+        port.close()
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=30)
+        print(f"{name:<18}{device.buffer.flow_control:<14}{share:>11.2%}")
+
+
+if __name__ == "__main__":
+    link_bound()
+    motion_bound()
+    host_cpu()
