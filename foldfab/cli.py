@@ -689,3 +689,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("foldfab: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader went away (``foldfab queue list | head``): not an error of ours.
+        # Point stdout at /dev/null so the interpreter's final flush stays quiet.
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
