@@ -13,13 +13,11 @@ import json
 import sys
 from pathlib import Path
 
-MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb")
-
-
 def _design_outputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
     outputs = [(kind, Path(path)) for kind, path in
                (("fold", args.fold), ("svg", args.svg), ("cp", args.cp), ("mesh", args.mesh)) if path]
     from foldfab.errors import FoldfabError
+    from foldfab.output import MESH_SUFFIXES
 
     for kind, path in outputs:
         if kind == "mesh" and path.suffix.lower() not in MESH_SUFFIXES:
@@ -636,6 +634,42 @@ def _add_sim_parser(sub) -> None:
     sim.set_defaults(func=cmd_sim)
 
 
+def cmd_studio(args: argparse.Namespace) -> int:
+    """Serve the four-view designer on 127.0.0.1 and open a browser on it."""
+    from foldfab.studio.api import Studio
+    from foldfab.studio.server import serve
+
+    studio = Studio(Path.cwd(), Path(args.job) if args.job else None)
+    if args.job and not Path(args.job).exists():
+        print(f"foldfab studio: {args.job} does not exist yet: a new design, saved there when you save")
+    try:
+        serve(studio, args.port, not args.no_browser,
+              announce=lambda url: print(f"foldfab studio: {url}  (Ctrl-C stops)", flush=True))
+    except KeyboardInterrupt:
+        print("\nfoldfab studio: stopped")
+    return 0
+
+
+def _port_number(text: str) -> int:
+    value = int(text)
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"expected 0 to 65535, got {value}")
+    return value
+
+
+def _add_studio_parser(sub) -> None:
+    studio = sub.add_parser("studio", help="the four-view designer in the browser",
+                            description="Design interactively: profile, trajectory (top view), crease pattern "
+                                        "and 3D model, updated while you drag; open and save job files, export, "
+                                        "dry-run preview and queue.  Serves on 127.0.0.1 only.  A relative file "
+                                        "path typed in the studio starts in the current folder and must stay "
+                                        "inside it or the job's folder; an absolute path may go anywhere.")
+    studio.add_argument("job", nargs="?", metavar="JOB.toml", help="job file to open (a new design if it does not exist)")
+    studio.add_argument("--port", type=_port_number, default=0, metavar="N", help="port (default 0: a free one)")
+    studio.add_argument("--no-browser", action="store_true", help="only print the address; do not open a browser")
+    studio.set_defaults(func=cmd_studio)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
     from foldfab import __version__
@@ -672,6 +706,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_plot_parser(sub)
     _add_queue_parser(sub)
     _add_sim_parser(sub)
+    _add_studio_parser(sub)
     return parser
 
 

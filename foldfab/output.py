@@ -6,6 +6,19 @@ from pathlib import Path
 
 from foldfab.atomic import write_bytes, write_text
 from foldfab.design import Design
+from foldfab.errors import FoldfabError
+
+MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb")
+SUFFIX_KINDS = {".fold": "fold", ".svg": "svg", ".cp": "cp", **dict.fromkeys(MESH_SUFFIXES, "mesh")}
+
+
+def kind_of(path: Path) -> str:
+    """The kind of design file (fold, svg, cp, mesh) a file name asks for, by its suffix."""
+    try:
+        return SUFFIX_KINDS[path.suffix.lower()]
+    except KeyError:
+        raise FoldfabError(f"{path}: unknown design file type {path.suffix!r}; "
+                           f"use one of {', '.join(SUFFIX_KINDS)}") from None
 
 
 def write_design_file(design: Design, kind: str, path: Path) -> None:

@@ -1,0 +1,463 @@
+"""The studio's API: small JSON requests, answered by foldfab's own core.
+
+Every request is a JSON object (at most :data:`MAX_BODY` bytes) whose fields are
+checked by type; a :class:`~foldfab.errors.FoldfabError` becomes HTTP 400 with
+its message, and where it points (a view, a key, a point) as ``cause``.  A
+design travels as the tables of its job file (``job``: ``design``, ``profile``,
+``trajectory``, ``crease``, ``fabrication``) and is built from exactly the TOML
+text the studio would save, so a saved job builds identically with
+``foldfab design``.  A built design is answered in binary (:func:`pack`): a JSON
+header, then flat little-endian arrays the browser reads without parsing.
+
+**Files.**  The studio reads and writes only the paths the user types.  A
+relative path is taken from the folder the studio was started in and must stay
+inside that folder or the job's folder (symbolic links resolved); an absolute
+path (or ``~/...``) is the user's explicit choice and is used as given.  An
+existing file is replaced only when the request says ``overwrite``.  Every file
+is written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import struct
+import threading
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from foldfab.errors import FoldfabError
+
+MAX_BODY = 16 * 2**20
+MAGIC = b"FFS1"
+EDGE_GROUPS = ("F", "V", "M", "B")  # drawn in this order: outline on top
+VIEWS = {"design": "file", "profile": "profile", "trajectory": "trajectory", "crease": "creases",
+         "fabrication": "creases"}
+NEW_JOB = {
+    "design": {"name": "untitled"},
+    "profile": {"points": [[0.0, 0.0], [8.0, 10.0], [0.0, 20.0], [8.0, 30.0], [0.0, 40.0]], "offset": [0.0, 0.0]},
+    "trajectory": {"template": "regular", "corners": 6, "radius": 40.0},
+    "crease": {"flat_angle": 1.0, "glue_tab": 0.0},
+}
+
+
+class ApiError(Exception):
+    """A request the studio refuses: HTTP ``status`` with ``message`` and extra JSON fields."""
+
+    def __init__(self, message: str, status: int = 400, **extra: Any):
+        super().__init__(message)
+        self.status = status
+        self.extra = extra
+
+
+@dataclass(frozen=True)
+class Response:
+    """What the server sends back."""
+
+    status: int
+    content_type: str
+    body: bytes
+
+    @classmethod
+    def json(cls, data: dict, status: int = 200) -> Response:
+        return cls(status, "application/json", json.dumps(data, allow_nan=False).encode())
+
+
+def pack(header: dict, arrays: dict[str, np.ndarray]) -> bytes:
+    """``MAGIC``, header length (u32), JSON header (``arrays``: dtype, shape, offset), 8-byte aligned arrays."""
+    meta, chunks, offset = {}, [], 0
+    for name, array in arrays.items():
+        array = np.ascontiguousarray(array, dtype=array.dtype.newbyteorder("<"))
+        data = array.tobytes()
+        meta[name] = {"dtype": array.dtype.str[1:], "shape": list(array.shape), "offset": offset}
+        chunks.append(data + b"\0" * (-len(data) % 8))
+        offset += len(data) + (-len(data) % 8)
+    head = json.dumps({**header, "arrays": meta}, allow_nan=False).encode()
+    head += b" " * (-(len(head) + 8) % 8)
+    return MAGIC + struct.pack("<I", len(head)) + head + b"".join(chunks)
+
+
+def unpack(data: bytes) -> tuple[dict, dict[str, np.ndarray]]:
+    """The header and arrays of :func:`pack` (for tests and tools)."""
+    if data[:4] != MAGIC:
+        raise ValueError("not a studio design")
+    (length,) = struct.unpack("<I", data[4:8])
+    header = json.loads(data[8:8 + length])
+    start = 8 + length
+    arrays = {name: np.frombuffer(data, np.dtype("<" + m["dtype"]), int(np.prod(m["shape"])), start + m["offset"])
+              .reshape(m["shape"]) for name, m in header["arrays"].items()}
+    return header, arrays
+
+
+def error_cause(message: str) -> dict[str, Any]:
+    """Where an error points: the view (profile, trajectory, creases, model, file), key and point."""
+    if "penetration" in message:
+        return {"view": "model"}
+    element = re.search(r"line element (\d+) \(profile point", message)
+    if element:
+        return {"view": "profile", "point": int(element.group(1))}
+    key = re.search(r"\[(design|profile|trajectory|crease|fabrication)\](?:\.(\w+))?(?:\[(\d+)\])?", message)
+    if key:
+        table, name, index = key.groups()
+        cause: dict[str, Any] = {"view": VIEWS[table]}
+        if name:
+            cause["field"] = f"{table}.{name}"
+        if index is not None:
+            cause["point"] = int(index)
+        return cause
+    if "even number of corners" in message:
+        return {"view": "trajectory", "field": "trajectory.corners"}
+    point = re.search(r"(profile|trajectory) (?:point|segment) (\d+)|\b(profile|trajectory): points? (\d+)", message)
+    if point:
+        return {"view": point.group(1) or point.group(3), "point": int(point.group(2) or point.group(4))}
+    for word in ("profile", "trajectory"):
+        if re.search(rf"\b{word}\b", message):
+            return {"view": word}
+    return {"view": "file"}
+
+
+# --- request fields -------------------------------------------------------------------------
+
+_REQUIRED = object()
+
+
+def _field(body: dict, key: str, kind: type | tuple[type, ...], default: Any = _REQUIRED) -> Any:
+    if key not in body:
+        if default is _REQUIRED:
+            raise ApiError(f"request: missing field {key!r}")
+        return default
+    value = body[key]
+    if isinstance(value, bool) and bool not in (kind if isinstance(kind, tuple) else (kind,)):
+        raise ApiError(f"request: {key!r} must be {_kind_name(kind)}, got a boolean")
+    if not isinstance(value, kind):
+        raise ApiError(f"request: {key!r} must be {_kind_name(kind)}, got {type(value).__name__}")
+    if isinstance(value, str) and len(value) > 4096:
+        raise ApiError(f"request: {key!r} is longer than 4096 characters")
+    return value
+
+
+def _kind_name(kind) -> str:
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    return " or ".join({dict: "an object", str: "a string", bool: "true or false", int: "a whole number",
+                        float: "a number", list: "a list"}[k] for k in kinds)
+
+
+def _number(body: dict, key: str, default: int, low: int, high: int) -> int:
+    value = _field(body, key, int, default)
+    if not low <= value <= high:
+        raise ApiError(f"request: {key!r} must be from {low} to {high}, got {value}")
+    return value
+
+
+@dataclass
+class Studio:
+    """One studio session: the folder it was started in, the device profiles it has read."""
+
+    start_dir: Path
+    job_path: Path | None = None
+    _devices: dict = field(default_factory=dict)
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def __post_init__(self) -> None:
+        from foldfab.job import load_job
+
+        self.start_dir = Path(self.start_dir).resolve()
+        if self.job_path is not None:
+            self.job_path = Path(self.job_path).resolve()
+            if self.job_path.exists():
+                load_job(self.job_path)  # a job file that does not read is an error before the server starts
+
+    # -- dispatch
+
+    def routes(self) -> dict[tuple[str, str], Callable[[dict], Response | dict]]:
+        """(method, path) -> handler."""
+        return {("GET", "/api/state"): self.state, ("POST", "/api/design"): self.design,
+                ("POST", "/api/open"): self.open, ("POST", "/api/files"): self.files,
+                ("POST", "/api/save"): self.save, ("POST", "/api/export"): self.export,
+                ("POST", "/api/preview"): self.preview, ("POST", "/api/queue"): self.queue}
+
+    def handle(self, method: str, path: str, body: bytes = b"") -> Response:
+        """Answer one API request; user mistakes are 4xx JSON, never an exception."""
+        handler = self.routes().get((method, path))
+        if handler is None:
+            known = any(p == path for _, p in self.routes())
+            return Response.json({"error": f"{method} {path}: " + ("method not allowed" if known else "no such API")},
+                                 405 if known else 404)
+        try:
+            request = self._decode(body) if method == "POST" else {}
+            result = handler(request)
+            return result if isinstance(result, Response) else Response.json(result)
+        except ApiError as exc:
+            return Response.json({"error": str(exc), **exc.extra}, exc.status)
+        except FoldfabError as exc:
+            return Response.json({"error": str(exc), "cause": error_cause(str(exc))}, 400)
+        except RecursionError:
+            return Response.json({"error": "request: nested too deeply"}, 400)
+        except Exception as exc:  # a bug: report it, keep the session alive
+            traceback.print_exc()
+            return Response.json({"error": f"internal error in the studio: {type(exc).__name__}: {exc}"}, 500)
+
+    @staticmethod
+    def _decode(body: bytes) -> dict:
+        if len(body) > MAX_BODY:
+            raise ApiError(f"request too large ({len(body)} bytes; at most {MAX_BODY})", 413)
+
+        def no_constants(name: str):
+            raise ApiError(f"request: {name} is not a number JSON allows")
+
+        try:
+            data = json.loads(body.decode("utf-8"), parse_constant=no_constants)
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+            raise ApiError(f"request: not valid JSON: {exc}") from None
+        if not isinstance(data, dict):
+            raise ApiError("request: expected a JSON object")
+        return data
+
+    # -- paths
+
+    def _job_path(self, request: dict) -> Path:
+        """The job file the design belongs to (where its relative SVG paths start)."""
+        text = _field(request, "path", str, "")
+        if not text:
+            return self.start_dir / "untitled.toml"
+        path = Path(text).expanduser()
+        return path if path.is_absolute() else self.start_dir / path
+
+    def user_path(self, text: str, job_path: Path) -> Path:
+        """A path the user typed, under the module docstring's file rule."""
+        if not text.strip():
+            raise ApiError("type a file name first")
+        typed = Path(text).expanduser()
+        if typed.is_absolute():
+            return typed
+        resolved = (self.start_dir / typed).resolve()
+        folders = (self.start_dir, job_path.parent.resolve())
+        if not any(resolved.is_relative_to(folder) for folder in folders):
+            raise ApiError(f"{text}: a relative path must stay inside the folder the studio was started in "
+                           f"({self.start_dir}) or the job's folder ({folders[1]}); type an absolute path "
+                           "to use another folder", cause={"view": "file"})
+        return resolved
+
+    def display(self, path: Path) -> str:
+        """``path`` relative to the start folder when inside it, else absolute."""
+        path = path.resolve()
+        return str(path.relative_to(self.start_dir)) if path.is_relative_to(self.start_dir) else str(path)
+
+    def _target(self, request: dict, job_path: Path, suffixes: tuple[str, ...] | None) -> Path:
+        target = self.user_path(_field(request, "target", str), job_path)
+        if suffixes and target.suffix.lower() not in suffixes:
+            raise ApiError(f"{target}: expected a file name ending in {', '.join(suffixes)}", cause={"view": "file"})
+        if not target.parent.is_dir():
+            raise ApiError(f"{target}: folder {target.parent} does not exist; create it first", cause={"view": "file"})
+        if target.is_dir():
+            raise ApiError(f"{target}: is a folder; type a file name", cause={"view": "file"})
+        if target.exists() and not _field(request, "overwrite", bool, False):
+            raise ApiError(f"{target} exists; replace it?", 409, exists=True, target=str(target))
+        return target
+
+    # -- jobs and designs
+
+    def _job(self, request: dict):
+        """The request's job, validated exactly as its saved TOML would be: (Job, text)."""
+        from foldfab.job import parse_job, toml_text
+
+        data = _field(request, "job", dict)
+        path = self._job_path(request)
+        text = toml_text(data)
+        return parse_job(text, path), text
+
+    def _device(self, name: str):
+        from foldfab.devices import load_device
+
+        if not name:
+            raise ApiError("choose a device first", cause={"view": "creases", "field": "device"})
+        with self._lock:
+            if name not in self._devices:
+                self._devices[name] = load_device(name)
+            return self._devices[name]
+
+    def _build(self, request: dict):
+        """The request's design; penetration is an error unless ``allow_penetration``."""
+        from foldfab.design import build_design
+
+        job, text = self._job(request)
+        allow = _field(request, "allow_penetration", bool, False)
+        try:
+            design = build_design(job, allow_penetration=True)
+        except FoldfabError as exc:
+            raise self._failure(job, str(exc)) from None
+        if len(design.penetrations) and not allow:
+            from foldfab.design import penetration_message
+
+            cp = design.crease_pattern
+            quads = cp.vertices_3d[cp.faces[np.unique(design.penetrations)[:4000]]]
+            message = (f"{job.path}: {penetration_message(cp, design.penetrations)}; change the design, "
+                       "or tick 'allow penetration' to keep it")
+            raise self._failure(job, message, penetrating=quads.astype(np.float32).ravel().round(4).tolist())
+        return design, text
+
+    @staticmethod
+    def _failure(job, message: str, **extra: Any) -> ApiError:
+        """An invalid design: the message, its cause, and the polylines as given (when they can be read)."""
+        from foldfab.design import profile_points, trajectory_points
+
+        try:
+            extra["polylines"] = {"profile": (profile_points(job) - np.array(job.profile.offset)).tolist(),
+                                  "trajectory": trajectory_points(job).tolist()}
+        except FoldfabError:
+            pass
+        return ApiError(message, cause=error_cause(message.removeprefix(f"{job.path}: ")), **extra)
+
+    def _fit(self, design, device_name: str) -> dict | None:
+        """Does the design fit the device's sheet (the job's [fabrication] settings)?"""
+        from foldfab.fabrication import parse_fabrication, place
+
+        if not device_name:
+            return None
+        try:
+            device = self._device(device_name)
+            spec = parse_fabrication(design.job.fabrication, str(design.job.path))
+            placement, sheet = place(design, device, spec)
+        except FoldfabError as exc:
+            return {"device": device_name, "ok": False, "message": str(exc).removeprefix(f"{design.job.path}: ")}
+        w, h = placement.size
+        return {"device": device_name, "ok": True, "sheet": list(sheet), "margin": spec.margin,
+                "scale": placement.scale, "rotated": placement.rotated, "placed": [w, h],
+                "message": f"fits {device.name}: {w:.1f} x {h:.1f} mm on a {sheet[0]:g} x {sheet[1]:g} mm sheet"
+                           f"{' (turned 90 degrees)' if placement.rotated else ''}, margin {spec.margin:g} mm"}
+
+    # -- handlers
+
+    def state(self, request: dict) -> dict:
+        """The session: the first job, its path, the devices and whether the queue is there."""
+        from foldfab.devices import list_devices
+        from foldfab.job import job_data, load_job
+        from foldfab.queue import default_queue_path
+
+        path = self.job_path or self.start_dir / "untitled.toml"
+        job = job_data(load_job(path)) if self.job_path and self.job_path.is_file() else \
+            {**NEW_JOB, "design": {"name": path.stem}}
+        return {"job": job, "path": str(path), "display": self.display(path), "start_dir": str(self.start_dir),
+                "devices": list_devices(), "queue": {"available": True, "location": str(default_queue_path())},
+                "max_body": MAX_BODY}
+
+    def design(self, request: dict) -> Response:
+        """Build the design; binary answer (:func:`pack`)."""
+        import time
+
+        from foldfab.design import summary, trajectory_points
+
+        start = time.perf_counter()
+        design, text = self._build(request)
+        built = time.perf_counter()
+        fit = self._fit(design, _field(request, "device", str, ""))
+        cp, grid = design.crease_pattern, design.grid
+        rank = np.zeros(len(cp.edges), np.uint8)
+        for i, kind in enumerate(EDGE_GROUPS):
+            rank[cp.assignment == kind] = i
+        order = np.argsort(rank, kind="stable")
+        counts = np.bincount(rank, minlength=len(EDGE_GROUPS)).tolist()
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).tolist()
+        arrays = {
+            "profile": grid.profile - np.array(design.job.profile.offset),
+            "trajectory": trajectory_points(design.job),
+            "planes": np.column_stack([grid.trajectory, grid.mirror_normals]),
+            "paths": grid.points.astype(np.float32),
+            "cp_vertices": cp.vertices.astype(np.float32),
+            "model_vertices": cp.vertices_3d.astype(np.float32),
+            "edges": cp.edges[order].astype(np.uint32),
+            "triangles": cp.triangles()[0].astype(np.uint32),
+            "penetrating": cp.faces[np.unique(design.penetrations)].astype(np.uint32),
+        }
+        header = {"summary": summary(design), "toml": text, "fit": fit, "closed": grid.closed,
+                  "corner_seam": grid.corner_seam,
+                  "edge_groups": {k: [s, c] for k, s, c in zip(EDGE_GROUPS, starts, counts)},
+                  "seq": _field(request, "seq", int, 0)}
+        header["server_ms"] = {"build": round(1000 * (built - start), 2),
+                               "total": round(1000 * (time.perf_counter() - start), 2)}
+        return Response(200, "application/octet-stream", pack(header, arrays))
+
+    def open(self, request: dict) -> dict:
+        """Read a job file: its tables for the views."""
+        from foldfab.job import job_data, load_job
+
+        path = self.user_path(_field(request, "target", str), self._job_path(request))
+        job = load_job(path)
+        return {"job": job_data(job), "path": str(path), "display": self.display(path)}
+
+    def files(self, request: dict) -> dict:
+        """Job files in the start folder, its subfolders and the job's folder, for the open field."""
+        job_dir = self._job_path(request).parent
+        found: set[Path] = set()
+        for pattern, folder in (("*.toml", self.start_dir), ("*/*.toml", self.start_dir), ("*.toml", job_dir)):
+            if folder.is_dir():
+                found.update(p.resolve() for p in sorted(folder.glob(pattern))[:200] if p.is_file())
+        return {"files": sorted(self.display(p) for p in found)[:400]}
+
+    def save(self, request: dict) -> dict:
+        """Write the job file; SVG paths are rewritten relative to its new folder."""
+        from foldfab.atomic import write_text
+        from foldfab.job import job_data, job_to_toml, parse_job
+
+        job, _ = self._job(request)
+        target = self._target(request, job.path, (".toml",))
+        text = job_to_toml(job, target.parent)
+        saved = parse_job(text, target)
+        write_text(target, text)
+        return {"written": str(target), "path": str(target), "display": self.display(target),
+                "job": job_data(saved)}
+
+    def export(self, request: dict) -> dict:
+        """Write the crease pattern or model: FOLD, SVG, ORIPA .cp or a mesh, by the file's suffix."""
+        from foldfab.output import SUFFIX_KINDS, kind_of, write_design_file
+
+        design, _ = self._build(request)
+        target = self._target(request, design.job.path, tuple(SUFFIX_KINDS))
+        kind = kind_of(target)
+        try:
+            write_design_file(design, kind, target)
+        except OSError as exc:
+            raise ApiError(f"{target}: cannot write: {exc.strerror or exc}", cause={"view": "file"}) from None
+        return {"written": str(target), "kind": kind}
+
+    def _fabricate(self, request: dict):
+        from foldfab.fabrication import fabricate
+
+        design, text = self._build(request)
+        device = self._device(_field(request, "device", str, ""))
+        return design, text, device, fabricate(design, device)
+
+    def preview(self, request: dict) -> dict:
+        """The dry run: the program read back and drawn as the device would move."""
+        from foldfab.interpret import interpret
+        from foldfab.preview import render_preview
+
+        design, _, device, fab = self._fabricate(request)
+        svg = render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan)
+        return {"svg": svg, "device": device.name, "strategy": fab.spec.strategy, "sheet": list(fab.plan.sheet),
+                "program_bytes": len(fab.program.text)}
+
+    def queue(self, request: dict) -> dict:
+        """Build the program now and add a snapshot of it to the plot queue."""
+        from foldfab.queue import NewJob, SqliteQueueStore, default_queue_path, make_snapshot
+
+        design, text, device, fab = self._fabricate(request)
+        port = _field(request, "port", str, "") or device.port
+        if not port:
+            raise ApiError(f"{device.name} has no port: type one (a serial port such as /dev/ttyUSB0, or "
+                           f"sim://{device.name} for a simulated plotter), or set port in {device.source}",
+                           cause={"view": "file", "field": "port"})
+        copies = _number(request, "copies", 1, 1, 1000)
+        priority = _number(request, "priority", 0, -1000, 1000)
+        snapshot = make_snapshot(design.job.path, text, design.job.name, device, fab.program)
+        store = SqliteQueueStore(default_queue_path())
+        try:
+            ids = store.add([NewJob(snapshot, port, priority, copies)])
+        finally:
+            store.close()
+        return {"ids": ids, "queue": str(store.location), "device": device.name, "port": port,
+                "program_bytes": len(fab.program.text)}

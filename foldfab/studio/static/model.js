@@ -1,0 +1,157 @@
+// The 3D view (WebGL, three.js): the folded model, front and back of the paper in different
+// colours, creases as lines, penetrating faces red.  Orbit, zoom and pan; z is up.
+
+import * as THREE from "three";
+import { OrbitControls } from "./vendor/OrbitControls.js";
+
+const FRONT = 0xf1e4c3, BACK = 0x8fb3de, HIT = 0xe53935;
+const LINES = { V: 0x1e63d6, M: 0xe53935, B: 0x24292f };
+
+export class ModelView {
+  constructor(studio, section) {
+    this.studio = studio;
+    this.section = section;
+    this.canvas = section.querySelector("canvas");
+    this.info = section.querySelector("#model-info");
+    this.showCreases = section.querySelector("#show-creases");
+    this.renderer = new THREE.WebGLRenderer({ canvas: this.canvas, antialias: true });
+    this.renderer.setPixelRatio(window.devicePixelRatio || 1);
+    this.renderer.setClearColor(0xffffff);
+    this.scene = new THREE.Scene();
+    this.camera = new THREE.PerspectiveCamera(35, 1, 0.1, 1e5);
+    this.camera.up.set(0, 0, 1);
+    this.camera.position.set(200, -300, 200);
+    this.scene.add(new THREE.HemisphereLight(0xffffff, 0x8a8f98, 1.4));
+    this.light = new THREE.DirectionalLight(0xffffff, 1.6);
+    this.camera.add(this.light, this.light.target);   // a head light, a little above and left of the eye
+    this.light.position.set(-0.3, 0.6, 0);
+    this.light.target.position.set(0, 0, -1);
+    this.scene.add(this.camera);
+    this.controls = new OrbitControls(this.camera, this.canvas);
+    this.controls.addEventListener("change", () => this.draw());
+    this.objects = new THREE.Group();
+    this.scene.add(this.objects);
+    this.materials = {
+      front: new THREE.MeshLambertMaterial({ color: FRONT, side: THREE.FrontSide, flatShading: true,
+                                             polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1 }),
+      back: new THREE.MeshLambertMaterial({ color: BACK, side: THREE.BackSide, flatShading: true,
+                                            polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1 }),
+      hit: new THREE.MeshBasicMaterial({ color: HIT, side: THREE.DoubleSide }),
+      rejected: new THREE.MeshBasicMaterial({ color: HIT, side: THREE.DoubleSide, transparent: true, opacity: 0.55,
+                                              depthTest: false }),
+      lines: Object.fromEntries(Object.entries(LINES).map(([k, c]) => [k, new THREE.LineBasicMaterial({ color: c })])),
+    };
+    this.fitted = false;
+    this.shownDesign = null;
+    new ResizeObserver(() => this.resize()).observe(this.canvas);
+    this.showCreases.addEventListener("change", () => { this.shownDesign = null; this.render(); });
+    section.querySelector(".fit").addEventListener("click", () => this.fit());
+  }
+
+  resize() {
+    const r = this.canvas.getBoundingClientRect();
+    if (!r.width || !r.height) return;
+    this.renderer.setSize(r.width, r.height, false);
+    this.camera.aspect = r.width / r.height;
+    this.camera.updateProjectionMatrix();
+    this.draw();
+  }
+
+  fit() {
+    const shown = this.studio.shown;
+    if (!shown) return;
+    const v = shown.modelVertices;
+    const box = new THREE.Box3().setFromArray(v);
+    const sphere = box.getBoundingSphere(new THREE.Sphere());
+    const distance = sphere.radius / Math.sin(THREE.MathUtils.degToRad(this.camera.fov / 2)) * 1.08;
+    const direction = new THREE.Vector3(0.55, -0.75, 0.45).normalize();
+    this.camera.position.copy(sphere.center).addScaledVector(direction, distance);
+    this.camera.near = distance / 100;
+    this.camera.far = distance * 100;
+    this.camera.updateProjectionMatrix();
+    this.controls.target.copy(sphere.center);
+    this.controls.update();
+    this.fitted = true;
+    this.draw();
+  }
+
+  /** Rebuild the scene when the shown design changed; always redraw. */
+  render() {
+    const shown = this.studio.shown;
+    if (shown && shown !== this.shownDesign) {
+      this.build(shown);
+      this.shownDesign = shown;
+      if (!this.fitted) this.fit();
+    }
+    this.buildRejected(this.studio.error && this.studio.error.penetrating);
+    if (shown) {
+      const s = shown.summary;
+      this.info.textContent = `${s.faces} faces · ${s.vertices} vertices · ${s.corners} corners · ` +
+        `${s.closed ? "closed" : "open"} · penetrations ${s.penetrations}`;
+    }
+    this.draw();
+  }
+
+  clear(group) {
+    for (const child of [...group.children]) {
+      group.remove(child);
+      if (child.geometry && !child.userData.shared) child.geometry.dispose();
+    }
+  }
+
+  build(shown) {
+    this.clear(this.objects);
+    const position = new THREE.BufferAttribute(shown.modelVertices, 3);
+    const surface = new THREE.BufferGeometry();
+    surface.setAttribute("position", position);
+    surface.setIndex(new THREE.BufferAttribute(shown.triangles, 1));
+    this.objects.add(new THREE.Mesh(surface, this.materials.front));
+    const back = new THREE.Mesh(surface, this.materials.back);
+    back.userData.shared = true;
+    this.objects.add(back);
+    const quads = shown.penetrating;
+    if (quads.length) {
+      const tris = new Uint32Array(quads.length / 4 * 6);
+      for (let q = 0, t = 0; q < quads.length; q += 4, t += 6) {
+        tris.set([quads[q], quads[q + 1], quads[q + 2], quads[q], quads[q + 2], quads[q + 3]], t);
+      }
+      const hit = new THREE.BufferGeometry();
+      hit.setAttribute("position", position);
+      hit.setIndex(new THREE.BufferAttribute(tris, 1));
+      this.objects.add(new THREE.Mesh(hit, this.materials.hit));
+    }
+    if (this.showCreases.checked) {
+      for (const kind of ["V", "M", "B"]) {
+        const [start, count] = shown.edgeGroups[kind];
+        if (!count) continue;
+        const lines = new THREE.BufferGeometry();
+        lines.setAttribute("position", position);
+        lines.setIndex(new THREE.BufferAttribute(shown.edges.subarray(2 * start, 2 * (start + count)), 1));
+        this.objects.add(new THREE.LineSegments(lines, this.materials.lines[kind]));
+      }
+    }
+  }
+
+  /** The penetrating faces of a design the studio refused, over the last valid one. */
+  buildRejected(flat) {
+    if (this.rejected) {
+      this.scene.remove(this.rejected);
+      this.rejected.geometry.dispose();
+      this.rejected = null;
+    }
+    if (!flat || !flat.length) return;
+    const quads = new Float32Array(flat);
+    const tris = [];
+    for (let q = 0; q < quads.length / 12; q++) tris.push(4 * q, 4 * q + 1, 4 * q + 2, 4 * q, 4 * q + 2, 4 * q + 3);
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute("position", new THREE.BufferAttribute(quads, 3));
+    geometry.setIndex(tris);
+    this.rejected = new THREE.Mesh(geometry, this.materials.rejected);
+    this.rejected.renderOrder = 2;
+    this.scene.add(this.rejected);
+  }
+
+  draw() {
+    this.renderer.render(this.scene, this.camera);
+  }
+}

@@ -1,0 +1,166 @@
+// The profile view: the profile polyline (u right, v up) and the trajectory seen end-on as a dot.
+// Points are the job's [profile].points; the dot sits at -offset, so dragging it sets [profile].offset.
+
+import { View2D, bounds, fmt, nearestHandle, nearestSegment } from "./view2d.js";
+import { PointTable } from "./table.js";
+
+export class ProfileView {
+  constructor(studio, section) {
+    this.studio = studio;
+    this.section = section;
+    this.selected = -1;
+    this.view = new View2D(section.querySelector("canvas"), {
+      draw: (view, ctx) => this.draw(view, ctx),
+      hit: (sx, sy) => this.hit(sx, sy),
+      drag: (target, world) => this.drag(target, world),
+      drop: () => studio.commit(),
+      dblclick: (world) => this.add(world),
+      context: (world, e) => this.remove(this.handleAt(e)),
+    });
+    this.view.canvas.addEventListener("keydown", (e) => {
+      if ((e.key === "Delete" || e.key === "Backspace") && this.selected >= 0) { e.preventDefault(); this.remove(this.selected); }
+    });
+    section.querySelector(".fit").addEventListener("click", () => this.fit());
+    this.table = new PointTable(section.querySelector("#profile-points"), ["u", "v"], {
+      change: (i, values) => { this.editable()[i] = values; studio.edit(); this.view.draw(); },
+      remove: (i) => this.remove(i),
+      select: (i) => { this.selected = i; this.view.draw(); },
+    });
+  }
+
+  points() { return this.studio.profilePoints(); }
+
+  offset() { return this.studio.job.profile.offset || [0, 0]; }
+
+  /** The job's point list, made from the drawn points first when the profile came from an SVG file. */
+  editable() { return this.studio.editableProfile(); }
+
+  handleAt(e) {
+    const r = this.view.canvas.getBoundingClientRect();
+    return nearestHandle(this.view, this.points(), e.clientX - r.left, e.clientY - r.top);
+  }
+
+  hit(sx, sy) {
+    const [ou, ov] = this.offset();
+    const [dx, dy] = this.view.toScreen(-ou, -ov);
+    const i = nearestHandle(this.view, this.points(), sx, sy);
+    if (i >= 0) { this.selected = i; this.view.draw(); return { point: i }; }
+    if (Math.hypot(dx - sx, dy - sy) <= 10) return { dot: true };
+    return null;
+  }
+
+  drag(target, world) {
+    const [x, y] = this.studio.snapped(world);
+    if (target.dot) {
+      const [u, v] = this.offset();
+      if (u === -x && v === -y) return;   // snapped to where it was: nothing to rebuild
+      this.studio.job.profile.offset = [-x + 0, -y + 0];
+      this.studio.syncControls();
+    } else {
+      const [u, v] = this.points()[target.point];
+      if (u === x && v === y) return;
+      this.editable()[target.point] = [x, y];
+    }
+    this.studio.edit();
+    this.render();
+  }
+
+  add(world) {
+    const points = this.editable();
+    const p = this.studio.snapped(world);
+    const [sx, sy] = this.view.toScreen(...world);
+    const seg = nearestSegment(this.view, points, sx, sy);
+    let at;
+    if (seg >= 0) at = seg + 1;
+    else {
+      const d0 = Math.hypot(points[0][0] - p[0], points[0][1] - p[1]);
+      const d1 = Math.hypot(points.at(-1)[0] - p[0], points.at(-1)[1] - p[1]);
+      at = d0 < d1 ? 0 : points.length;
+    }
+    points.splice(at, 0, p);
+    this.selected = at;
+    this.studio.edit();
+    this.studio.commit();
+    this.render();
+  }
+
+  remove(i) {
+    if (i < 0) return;
+    this.editable().splice(i, 1);
+    this.selected = -1;
+    this.studio.edit();
+    this.studio.commit();
+    this.render();
+  }
+
+  fit() {
+    const [ou, ov] = this.offset();
+    const box = bounds([...this.points(), [-ou, -ov]]);
+    if (box) this.view.fit(box, 0.1);
+  }
+
+  render() {
+    if (!this.view.fitted) this.fit();
+    this.view.draw();
+    this.table.update(this.points(), this.selected, this.errorPoint());
+  }
+
+  errorPoint() {
+    const cause = this.studio.error && this.studio.error.cause;
+    return cause && cause.view === "profile" && cause.point !== undefined ? cause.point : -1;
+  }
+
+  draw(view, ctx) {
+    view.drawGrid(ctx);
+    if (!this.studio.job) return;
+    const points = this.points();
+    const [ou, ov] = this.offset();
+    const [dx, dy] = view.toScreen(-ou, -ov);
+    // The trajectory's level (v = 0) and line (u = 0), then the trajectory itself, end-on.
+    ctx.save();
+    ctx.setLineDash([5, 4]);
+    ctx.strokeStyle = "#8fb3de";
+    ctx.beginPath();
+    ctx.moveTo(dx, 0); ctx.lineTo(dx, view.height);
+    ctx.moveTo(0, dy); ctx.lineTo(view.width, dy);
+    ctx.stroke();
+    ctx.restore();
+    ctx.fillStyle = "#57606a";
+    ctx.font = "11px system-ui, sans-serif";
+    ctx.fillText("u →  (right of travel)", view.width - 130, view.height - 22);
+    ctx.fillText("v ↑", 8, 16);
+    if (points.length) {
+      ctx.lineWidth = 2;
+      ctx.strokeStyle = this.studio.error && this.studio.error.cause && this.studio.error.cause.view === "profile" ? "#c62828" : "#24292f";
+      view.path(ctx, points);
+      ctx.stroke();
+      const small = points.length > 150;
+      points.forEach(([x, y], i) => {
+        const [sx, sy] = view.toScreen(x, y);
+        const r = small ? 2 : 4;
+        ctx.fillStyle = i === this.selected ? "#1f6feb" : "#fff";
+        ctx.strokeStyle = "#24292f";
+        ctx.lineWidth = 1.2;
+        ctx.fillRect(sx - r, sy - r, 2 * r, 2 * r);
+        ctx.strokeRect(sx - r, sy - r, 2 * r, 2 * r);
+      });
+      const bad = this.errorPoint();
+      if (bad >= 0 && bad < points.length) {
+        const [sx, sy] = view.toScreen(...points[bad]);
+        ctx.strokeStyle = "#c62828";
+        ctx.lineWidth = 2.5;
+        ctx.beginPath(); ctx.arc(sx, sy, 10, 0, 2 * Math.PI); ctx.stroke();
+      }
+      if (this.selected >= 0 && this.selected < points.length) {
+        const [x, y] = points[this.selected];
+        const [sx, sy] = view.toScreen(x, y);
+        ctx.fillStyle = "#1f6feb";
+        ctx.fillText(`point ${this.selected}: (${fmt(x)}, ${fmt(y)})`, sx + 8, sy - 8);
+      }
+    }
+    ctx.fillStyle = "#1f6feb";
+    ctx.beginPath(); ctx.arc(dx, dy, 6, 0, 2 * Math.PI); ctx.fill();
+    ctx.strokeStyle = "#fff"; ctx.lineWidth = 2; ctx.stroke();
+    ctx.fillText("trajectory", dx + 9, dy + 14);
+  }
+}

@@ -1,0 +1,208 @@
+// A 2D canvas view in millimetres (y up): pan, zoom, grid, hit-testing and dragging of handles.
+
+const DPR = () => window.devicePixelRatio || 1;
+
+export class View2D {
+  /**
+   * @param {HTMLCanvasElement} canvas
+   * @param {{draw: (view: View2D, ctx: CanvasRenderingContext2D) => void,
+   *          hit?: (x: number, y: number) => object | null,
+   *          drag?: (target: object, world: number[], event: PointerEvent) => void,
+   *          drop?: (target: object) => void,
+   *          dblclick?: (world: number[], event: MouseEvent) => void,
+   *          context?: (world: number[], event: MouseEvent) => void}} handlers
+   */
+  constructor(canvas, handlers) {
+    this.canvas = canvas;
+    this.ctx = canvas.getContext("2d");
+    this.h = handlers;
+    this.scale = 4;          // pixels per mm
+    this.center = [0, 0];    // world point at the canvas centre
+    this.width = 1;
+    this.height = 1;
+    this.fitted = false;
+    this.pending = 0;
+    new ResizeObserver(() => this.resize()).observe(canvas);
+    this.resize();
+    this.bindPointer();
+  }
+
+  resize() {
+    const r = this.canvas.getBoundingClientRect();
+    this.width = Math.max(1, r.width);
+    this.height = Math.max(1, r.height);
+    this.canvas.width = Math.round(this.width * DPR());
+    this.canvas.height = Math.round(this.height * DPR());
+    this.draw();
+  }
+
+  toScreen(x, y) {
+    return [(x - this.center[0]) * this.scale + this.width / 2, this.height / 2 - (y - this.center[1]) * this.scale];
+  }
+
+  toWorld(sx, sy) {
+    return [(sx - this.width / 2) / this.scale + this.center[0], (this.height / 2 - sy) / this.scale + this.center[1]];
+  }
+
+  /** Page coordinates of a world point (for tests and tools). */
+  toPage(x, y) {
+    const r = this.canvas.getBoundingClientRect();
+    const [sx, sy] = this.toScreen(x, y);
+    return [r.left + sx, r.top + sy];
+  }
+
+  /** Show the box [x0, y0, x1, y1] with a margin. */
+  fit(box, margin = 0.12) {
+    const w = Math.max(box[2] - box[0], 1e-6), h = Math.max(box[3] - box[1], 1e-6);
+    this.scale = Math.min(this.width * (1 - 2 * margin) / w, this.height * (1 - 2 * margin) / h);
+    if (!isFinite(this.scale) || this.scale <= 0) this.scale = 1;
+    this.center = [(box[0] + box[2]) / 2, (box[1] + box[3]) / 2];
+    this.fitted = true;
+    this.draw();
+  }
+
+  /** Redraw now. */
+  draw() {
+    const ctx = this.ctx;
+    ctx.setTransform(DPR(), 0, 0, DPR(), 0, 0);
+    ctx.clearRect(0, 0, this.width, this.height);
+    this.h.draw(this, ctx);
+  }
+
+  /** Redraw at the next frame (pan, zoom). */
+  drawSoon() {
+    if (this.pending) return;
+    this.pending = requestAnimationFrame(() => { this.pending = 0; this.draw(); });
+  }
+
+  /** Grid lines every 1, 2 or 5 x 10^n mm (at least 12 px apart), major lines every fifth or tenth. */
+  drawGrid(ctx) {
+    const minor = niceStep(12 / this.scale);
+    const major = minor * (String(minor).includes("2") ? 5 : 10);
+    const [x0, y1] = this.toWorld(0, 0), [x1, y0] = this.toWorld(this.width, this.height);
+    for (const [step, colour] of [[minor, "#f0f2f4"], [major, "#dde1e6"]]) {
+      ctx.beginPath();
+      for (let x = Math.ceil(x0 / step) * step; x <= x1; x += step) {
+        const sx = Math.round(this.toScreen(x, 0)[0]) + 0.5;
+        ctx.moveTo(sx, 0); ctx.lineTo(sx, this.height);
+      }
+      for (let y = Math.ceil(y0 / step) * step; y <= y1; y += step) {
+        const sy = Math.round(this.toScreen(0, y)[1]) + 0.5;
+        ctx.moveTo(0, sy); ctx.lineTo(this.width, sy);
+      }
+      ctx.strokeStyle = colour;
+      ctx.lineWidth = 1;
+      ctx.stroke();
+    }
+    ctx.fillStyle = "#8c959f";
+    ctx.font = "10px system-ui, sans-serif";
+    ctx.fillText(`grid ${fmt(minor)} mm`, this.width - 70, 12);
+    return minor;
+  }
+
+  /** Polyline through world points (array of [x, y]). */
+  path(ctx, points, closed = false) {
+    ctx.beginPath();
+    points.forEach(([x, y], i) => {
+      const [sx, sy] = this.toScreen(x, y);
+      if (i) ctx.lineTo(sx, sy); else ctx.moveTo(sx, sy);
+    });
+    if (closed) ctx.closePath();
+  }
+
+  bindPointer() {
+    const c = this.canvas;
+    let drag = null;      // {target} or {pan: [sx, sy, cx, cy]}
+    const local = (e) => { const r = c.getBoundingClientRect(); return [e.clientX - r.left, e.clientY - r.top]; };
+    c.addEventListener("pointerdown", (e) => {
+      if (e.button === 2) return;
+      c.focus();
+      const [sx, sy] = local(e);
+      const target = e.button === 0 && !e.shiftKey && this.h.hit ? this.h.hit(sx, sy) : null;
+      drag = target ? { target } : { pan: [sx, sy, ...this.center] };
+      c.setPointerCapture(e.pointerId);
+      e.preventDefault();
+    });
+    c.addEventListener("pointermove", (e) => {
+      if (!drag) {
+        const [sx, sy] = local(e);
+        c.style.cursor = this.h.hit && this.h.hit(sx, sy) ? "grab" : "crosshair";
+        return;
+      }
+      const [sx, sy] = local(e);
+      if (drag.target) {
+        this.h.drag(drag.target, this.toWorld(sx, sy), e);
+      } else {
+        const [px, py, cx, cy] = drag.pan;
+        this.center = [cx - (sx - px) / this.scale, cy + (sy - py) / this.scale];
+        this.drawSoon();
+      }
+    });
+    const end = (e) => {
+      if (drag && drag.target && this.h.drop) this.h.drop(drag.target);
+      drag = null;
+      if (c.hasPointerCapture(e.pointerId)) c.releasePointerCapture(e.pointerId);
+    };
+    c.addEventListener("pointerup", end);
+    c.addEventListener("pointercancel", end);
+    c.addEventListener("wheel", (e) => {
+      e.preventDefault();
+      const [sx, sy] = local(e);
+      const before = this.toWorld(sx, sy);
+      this.scale *= Math.exp(-e.deltaY * 0.0015);
+      const after = this.toWorld(sx, sy);
+      this.center = [this.center[0] + before[0] - after[0], this.center[1] + before[1] - after[1]];
+      this.drawSoon();
+    }, { passive: false });
+    c.addEventListener("dblclick", (e) => { if (this.h.dblclick) this.h.dblclick(this.toWorld(...local(e)), e); });
+    c.addEventListener("contextmenu", (e) => {
+      e.preventDefault();
+      if (this.h.context) this.h.context(this.toWorld(...local(e)), e);
+    });
+  }
+}
+
+export function niceStep(raw) {
+  const p = Math.pow(10, Math.floor(Math.log10(raw)));
+  for (const m of [1, 2, 5, 10]) if (m * p >= raw) return m * p;
+  return 10 * p;
+}
+
+export function fmt(x, digits = 3) {
+  return Number.isFinite(x) ? String(+x.toFixed(digits)) : "–";
+}
+
+/** Index of the handle within `radius` px of screen point (sx, sy), or -1. */
+export function nearestHandle(view, points, sx, sy, radius = 9) {
+  let best = -1, bestD = radius * radius;
+  points.forEach(([x, y], i) => {
+    const [px, py] = view.toScreen(x, y);
+    const d = (px - sx) ** 2 + (py - sy) ** 2;
+    if (d <= bestD) { best = i; bestD = d; }
+  });
+  return best;
+}
+
+/** Index i of the segment (i, i+1) within `radius` px of screen point (sx, sy), or -1. */
+export function nearestSegment(view, points, sx, sy, radius = 10) {
+  let best = -1, bestD = radius;
+  for (let i = 0; i + 1 < points.length; i++) {
+    const a = view.toScreen(...points[i]), b = view.toScreen(...points[i + 1]);
+    const dx = b[0] - a[0], dy = b[1] - a[1];
+    const t = Math.max(0, Math.min(1, ((sx - a[0]) * dx + (sy - a[1]) * dy) / (dx * dx + dy * dy || 1)));
+    const d = Math.hypot(a[0] + t * dx - sx, a[1] + t * dy - sy);
+    if (d <= bestD) { best = i; bestD = d; }
+  }
+  return best;
+}
+
+/** Bounding box [x0, y0, x1, y1] of [x, y] points (or null). */
+export function bounds(points) {
+  if (!points.length) return null;
+  const box = [Infinity, Infinity, -Infinity, -Infinity];
+  for (const [x, y] of points) {
+    box[0] = Math.min(box[0], x); box[1] = Math.min(box[1], y);
+    box[2] = Math.max(box[2], x); box[3] = Math.max(box[3], y);
+  }
+  return box;
+}

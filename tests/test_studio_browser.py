@@ -1,0 +1,243 @@
+"""The studio in a real browser: Playwright driving Debian's Chromium (headless, WebGL by SwiftShader).
+
+These tests never skip: without Chromium or Playwright they fail and say what to install.
+They wait for the studio's own signal (``<body data-render-count>`` grows and
+``data-status`` is no longer ``busy``), never for a fixed time, and every wait has a timeout.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from foldfab.studio.api import Studio
+from foldfab.studio.server import StudioServer
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--enable-unsafe-swiftshader"]
+TIMEOUT_MS = 20_000
+JOBS = Path(__file__).resolve().parent.parent / "jobs"
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not CHROMIUM.is_file():
+        pytest.fail(f"Chromium not found at {CHROMIUM}: install it (Debian: apt-get install -y chromium); "
+                    "the studio's browser tests need it and do not skip", pytrace=False)
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        pytest.fail("Playwright is not installed: pip install playwright (its own browser download is not "
+                    "needed: the tests use /usr/bin/chromium)", pytrace=False)
+    with sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, timeout=TIMEOUT_MS)
+        try:
+            yield chromium
+        finally:
+            chromium.close()
+
+
+@pytest.fixture
+def folder(tmp_path):
+    shutil.copy(JOBS / "hexagon-fig8a.toml", tmp_path / "hexagon.toml")
+    return tmp_path
+
+
+@pytest.fixture
+def server(folder):
+    server = StudioServer(Studio(folder, folder / "hexagon.toml"))
+    thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
+    thread.start()
+    try:
+        yield server
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join(timeout=10)
+
+
+@pytest.fixture
+def page(browser, server):
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    page = context.new_page()
+    page.set_default_timeout(TIMEOUT_MS)
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.goto(server.url)
+    wait_render(page, 0)
+    try:
+        yield page
+        assert not errors, f"JavaScript errors: {errors}"
+    finally:
+        context.close()
+
+
+def renders(page) -> int:
+    return int(page.evaluate("document.body.dataset.renderCount"))
+
+
+def wait_render(page, before: int) -> str:
+    """Wait until a response newer than ``before`` renders and no edit is pending; the status."""
+    page.wait_for_function("n => Number(document.body.dataset.renderCount) > n && document.body.dataset.status !== 'busy'"
+                           " && !window.studio.inflight", arg=before, timeout=TIMEOUT_MS)
+    return page.evaluate("document.body.dataset.status")
+
+
+def shown(page) -> dict:
+    """What the studio shows: summary and the crease pattern and model arrays."""
+    return page.evaluate("""() => {
+        const s = window.studio.shown;
+        return {summary: s.summary, cp: Array.from(s.cpVertices), model: Array.from(s.modelVertices),
+                edges: Array.from(s.edges), groups: s.edgeGroups};
+    }""")
+
+
+def set_field(page, selector: str, value) -> None:
+    """Type into a field as a user does (fires input and change)."""
+    page.fill(selector, str(value))
+    page.dispatch_event(selector, "change")
+
+
+def profile_point_on_page(page, index: int) -> tuple[float, float]:
+    return tuple(page.evaluate(f"(() => {{ const v = window.studio.profile.view; "
+                               f"return v.toPage(...window.studio.profilePoints()[{index}]); }})()"))
+
+
+# --------------------------------------------------------------------------------------------
+
+
+def test_template_loads_in_all_four_views(page):
+    first = shown(page)
+    assert first["summary"]["corners"] == 6 and first["summary"]["faces"] == 32
+    assert "32 faces" in page.inner_text("#cp-info") and "32 faces" in page.inner_text("#model-info")
+    before = renders(page)
+    page.select_option("#template", "star")   # 3 points, radii 40 and 28: the profile reaches too far out
+    assert wait_render(page, before) == "error"
+    assert page.evaluate("document.body.dataset.errorView") == "profile"
+    assert "line element 1" in page.inner_text("#view-profile .error")
+    assert page.is_visible("#param-outer_radius") and page.is_visible("#param-inner_radius")
+    before = renders(page)
+    set_field(page, "#offset-u", -4)           # the paper's position adjustment
+    assert wait_render(page, before) == "ok"
+    star = shown(page)
+    assert page.evaluate("window.studio.job.trajectory") == {"template": "star", "points": 3,
+                                                              "outer_radius": 40, "inner_radius": 28}
+    assert star["summary"]["corners"] == 6 and star["cp"] != first["cp"]
+    assert not page.is_visible("#view-profile .error")
+
+
+def test_dragging_a_profile_point_updates_every_view_while_dragging(page):
+    page.evaluate("""() => {  // count design requests in flight: the studio sends one at a time
+        window.maxInflight = 0; let now = 0; const fetch0 = window.fetch;
+        window.fetch = async (...a) => {
+            const design = String(a[0]).includes('/api/design');
+            if (design) { now++; window.maxInflight = Math.max(window.maxInflight, now); }
+            try { return await fetch0(...a); } finally { if (design) now--; }
+        };
+    }""")
+    before = shown(page)
+    x, y = profile_point_on_page(page, 1)   # point 1 is (8, 10)
+    scale = page.evaluate("window.studio.profile.view.scale")  # px per mm
+    page.mouse.move(x, y)
+    page.mouse.down()
+    count = renders(page)
+    page.mouse.move(x - 2 * scale, y, steps=4)   # inwards: outwards the 5 mm glue tab soon stops fitting
+    # The crease pattern and the model change before the mouse is released.
+    page.wait_for_function("w => window.studio.shown.summary.sheet_mm[1] !== w", arg=before["summary"]["sheet_mm"][1])
+    during = shown(page)
+    assert during["cp"] != before["cp"] and during["model"] != before["model"]
+    for step in range(1, 6):
+        page.mouse.move(x - (2 + step * 0.25) * scale, y)
+    page.mouse.up()
+    assert wait_render(page, count) == "ok"
+    assert page.evaluate("window.studio.job.profile.points[1]") == [5, 10], "snapped to the 1 mm grid"
+    after = shown(page)
+    assert after["cp"] != before["cp"] and after["model"] != before["model"]
+    assert after["summary"]["sheet_mm"] != before["summary"]["sheet_mm"]
+    assert page.evaluate("window.maxInflight") == 1
+
+
+def test_odd_corners_show_the_error_and_keep_the_last_valid_design(page):
+    valid = shown(page)
+    before = renders(page)
+    set_field(page, "#param-corners", 7)
+    assert wait_render(page, before) == "error"
+    assert page.evaluate("document.body.dataset.errorView") == "trajectory"
+    message = page.inner_text("#view-trajectory .error")
+    assert "even number of corners" in message and "7" in message
+    assert page.is_visible("#view-trajectory .error")
+    assert "invalid" in page.get_attribute("#param-corners", "class")
+    assert not page.is_visible("#view-profile .error")
+    # The crease pattern and the model still show the last valid design, marked as such.
+    assert shown(page) == valid
+    assert page.inner_text("#view-creases .stale") == "last valid design"
+    assert "32 faces" in page.inner_text("#model-info")
+    assert page.evaluate("window.studio.model.objects.children.length") > 0
+    # The trajectory view draws the 7 corners the user asked for.
+    assert len(page.evaluate("window.studio.trajectoryPoints()")) == 9
+    before = renders(page)
+    set_field(page, "#param-corners", 4)
+    assert wait_render(page, before) == "ok"
+    assert shown(page)["summary"]["corners"] == 4
+    assert not page.is_visible("#view-trajectory .error") and not page.query_selector("#view-creases .stale")
+
+
+def test_saved_job_builds_the_crease_pattern_the_studio_showed(page, folder):
+    x, y = profile_point_on_page(page, 3)
+    scale = page.evaluate("window.studio.profile.view.scale")
+    before = renders(page)
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x - 3 * scale, y + 2 * scale, steps=3)
+    page.mouse.up()
+    wait_render(page, before)
+    before = renders(page)
+    set_field(page, "#flat-angle", 4)
+    wait_render(page, before)
+    page.fill("#job-path", "designs/saved.toml")
+    page.click("#save")
+    page.wait_for_function("document.body.dataset.status === 'error' || "
+                           "document.querySelector('#file-message').classList.contains('error')")
+    assert "does not exist" in page.inner_text("#file-message"), "a missing folder is refused"
+    (folder / "designs").mkdir()
+    page.click("#save")
+    page.wait_for_function("document.body.dataset.saved")
+    saved = Path(page.evaluate("document.body.dataset.saved"))
+    assert saved == (folder / "designs" / "saved.toml").resolve()
+    wait_render(page, before)
+    studio = shown(page)
+    out = folder / "saved.fold"
+    run = subprocess.run([sys.executable, "-m", "foldfab", "design", str(saved), "--fold", str(out), "--json"],
+                         capture_output=True, text=True, timeout=120, cwd=folder)
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["creases"] == studio["summary"]["creases"]
+    fold = json.loads(out.read_text())
+    assert _creases(np.array(fold["vertices_coords"]), fold["edges_vertices"], fold["edges_assignment"]) == \
+        _studio_creases(studio)
+
+
+def _creases(vertices: np.ndarray, edges, assignment) -> set:
+    """Each crease as (assignment, its end points rounded to 1 µm, in order)."""
+    out = set()
+    for (a, b), kind in zip(edges, assignment):
+        ends = sorted([tuple(np.round(vertices[a], 3)), tuple(np.round(vertices[b], 3))])
+        out.add((kind, *ends))
+    return out
+
+
+def _studio_creases(studio: dict) -> set:
+    vertices = np.array(studio["cp"], dtype=np.float32).astype(float).reshape(-1, 2)
+    edges = np.array(studio["edges"]).reshape(-1, 2)
+    kinds = np.empty(len(edges), "<U1")
+    for kind, (start, count) in studio["groups"].items():
+        kinds[start:start + count] = kind
+    return _creases(vertices, edges.tolist(), kinds.tolist())
