@@ -284,8 +284,8 @@ class Studio:
         """The request's design; penetration is an error unless ``allow_penetration``."""
         from foldfab.design import build_design
 
-        job, text = self._job(request)
         allow = _field(request, "allow_penetration", bool, False)
+        job, text = self._job(request)
         try:
             design = build_design(job, allow_penetration=True)
         except FoldfabError as exc:
@@ -352,9 +352,10 @@ class Studio:
         from foldfab.design import summary, trajectory_points
 
         start = time.perf_counter()
+        device, seq = _field(request, "device", str, ""), _field(request, "seq", int, 0)
         design, text = self._build(request)
         built = time.perf_counter()
-        fit = self._fit(design, _field(request, "device", str, ""))
+        fit = self._fit(design, device)
         cp, grid = design.crease_pattern, design.grid
         rank = np.zeros(len(cp.edges), np.uint8)
         for i, kind in enumerate(EDGE_GROUPS):
@@ -376,7 +377,7 @@ class Studio:
         header = {"summary": summary(design), "toml": text, "fit": fit, "closed": grid.closed,
                   "corner_seam": grid.corner_seam,
                   "edge_groups": {k: [s, c] for k, s, c in zip(EDGE_GROUPS, starts, counts)},
-                  "seq": _field(request, "seq", int, 0)}
+                  "seq": seq}
         header["server_ms"] = {"build": round(1000 * (built - start), 2),
                                "total": round(1000 * (time.perf_counter() - start), 2)}
         return Response(200, "application/octet-stream", pack(header, arrays))
