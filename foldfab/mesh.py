@@ -1,7 +1,7 @@
 """The folded 3D model as a triangle mesh, and the penetration check.
 
 Penetration means two non-adjacent faces of the folded model intersect, which
-paper cannot do.  The check is a uniform-grid broad phase over triangle boxes
+paper cannot do.  The check is a uniform-grid broad phase over face boxes
 followed by an exact separating-axis test, all vectorized; faces that share a
 vertex in 3D (after welding, so the seam of a closed design counts) are
 adjacent and never reported, nor are glue-tab faces, which lie on the sheet by
@@ -74,9 +74,9 @@ def _candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         shift += 1
     if not pairs:
         return np.zeros((0, 2), np.int64)
-    pairs = np.sort(np.concatenate(pairs), axis=1)
-    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
-    return _unique_pairs(pairs, n)
+    # A stable sort keeps each cell's boxes in increasing order, and a box is in a cell once:
+    # every pair is already (smaller, larger).
+    return _unique_pairs(np.concatenate(pairs), n)
 
 
 def _unique_pairs(pairs: np.ndarray, n: int) -> np.ndarray:
@@ -106,31 +106,37 @@ def _triangles_intersect(a: np.ndarray, b: np.ndarray, eps: float) -> np.ndarray
 
 def find_penetrations(cp: CreasePattern, tolerance: float = 1e-6) -> np.ndarray:
     """Pairs of face indices (P, 2) of the folded model that intersect; ``tolerance`` is relative."""
-    tris, owner = cp.triangles()
-    keep = ~cp.tab_faces[owner] if len(cp.tab_faces) else np.ones(len(owner), bool)
-    tris, owner = tris[keep], owner[keep]
-    if len(tris) < 2:
+    faces = np.flatnonzero(~cp.tab_faces) if len(cp.tab_faces) else np.arange(len(cp.faces))
+    if len(faces) < 2:
         return np.zeros((0, 2), np.int64)
     v = cp.vertices_3d
     scale = float(np.ptp(v, axis=0).max()) or 1.0
     eps = tolerance * scale
-    welded = _weld(v, eps)
-    face_w = welded[cp.faces]
-    corners = v[tris]
+    face_w = _weld(v, eps)[cp.faces]
+    # Broad phase on whole faces (half as many boxes as triangles), then adjacency.
+    corners = v[cp.faces[faces]]
     lo, hi = corners.min(axis=1), corners.max(axis=1)
     pairs = _candidate_pairs(lo, hi)
-    boxes = np.all((np.minimum(hi[pairs[:, 0]], hi[pairs[:, 1]]) - np.maximum(lo[pairs[:, 0]], lo[pairs[:, 1]])) > -eps, axis=1)
-    pairs = pairs[boxes]
-    fa, fb = owner[pairs[:, 0]], owner[pairs[:, 1]]
+    a, b = pairs[:, 0], pairs[:, 1]
+    boxes = np.all((np.minimum(hi[a], hi[b]) - np.maximum(lo[a], lo[b])) > -eps, axis=1)
+    fa, fb = faces[a[boxes]], faces[b[boxes]]
     adjacent = (face_w[fa][:, :, None] == face_w[fb][:, None, :]).any(axis=(1, 2))
-    pairs = pairs[(fa != fb) & ~adjacent]
+    fa, fb = fa[~adjacent], fb[~adjacent]
+    # Narrow phase on the faces' triangles (0, 1, 2) and (0, 2, 3), as in CreasePattern.triangles;
+    # a triangular face repeats a vertex, and its degenerate half is left out.
+    halves = np.stack([cp.faces[:, [0, 1, 2]], cp.faces[:, [0, 2, 3]]], axis=1)
+    solid = ((halves[..., 0] != halves[..., 1]) & (halves[..., 1] != halves[..., 2])
+             & (halves[..., 0] != halves[..., 2]))
+    pa, pb = np.repeat(fa, 4), np.repeat(fb, 4)
+    ta, tb = np.tile([0, 0, 1, 1], len(fa)), np.tile([0, 1, 0, 1], len(fa))
+    ok = solid[pa, ta] & solid[pb, tb]
+    pa, pb, ta, tb = pa[ok], pb[ok], ta[ok], tb[ok]
     hits = []
-    for start in range(0, len(pairs), 100_000):
-        chunk = pairs[start:start + 100_000]
-        hit = _triangles_intersect(corners[chunk[:, 0]], corners[chunk[:, 1]], eps)
-        hits.append(chunk[hit])
-    found = np.sort(owner[np.concatenate(hits)], axis=1) if hits else np.zeros((0, 2), np.int64)
-    found = _unique_pairs(found, len(cp.faces))
+    for start in range(0, len(pa), 100_000):
+        part = slice(start, start + 100_000)
+        hit = _triangles_intersect(v[halves[pa[part], ta[part]]], v[halves[pb[part], tb[part]]], eps)
+        hits.append(np.column_stack([pa[part][hit], pb[part][hit]]))
+    found = _unique_pairs(np.concatenate(hits), len(cp.faces)) if hits else np.zeros((0, 2), np.int64)
     # Welding on a grid can split two vertices closer than eps across a cell boundary:
     # faces with any vertices that close touch there, so they are adjacent after all.
     gap = np.linalg.norm(v[cp.faces[found[:, 0]]][:, :, None] - v[cp.faces[found[:, 1]]][:, None, :], axis=-1)
