@@ -207,6 +207,7 @@ def _operator(args: argparse.Namespace, prompting: list[bool]):
 
 def cmd_plot(args: argparse.Namespace) -> int:
     """Build the job's program as ``export`` does and stream it to the plotter."""
+    import shlex
     import signal
     import threading
 
@@ -249,8 +250,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
             if args.json:
                 print(json.dumps({"event": "resume", "token": stop.token, "stroke": stop.stroke,
                                   "strokes": stop.strokes}), flush=True)
-            message += (f"; to finish the job run: foldfab plot {args.job} --device {args.device} "
-                        f"--port {port} --resume {stop.token}")
+            again = ["foldfab", "plot", args.job, "--device", args.device, "--port", port,
+                     "--resume", stop.token]
+            message += f"; to finish the job run: {shlex.join(again)}"
         kind = "stopped" if stop.exit_code == 130 else "error"
         print(f"foldfab: {kind}: {message}", file=sys.stderr)
         return stop.exit_code

@@ -240,41 +240,39 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
     early saves (or updates) its state and raises :class:`PlotStopped`.
     """
     from foldfab.interpret import interpret
+    from foldfab.progress import JobProgress
     from foldfab.stream import StreamStopped, stream
     from foldfab.transport import open_port
 
     state = load_state(resume) if resume else None
-    total = len(interpret(program, device).strokes)
-    first, done_before, sending = 0, 0, program
+    strokes = interpret(program, device).strokes
+    first, sending, pending = 0, program, 0
     if state is not None:
         check_state(state, program, job, device)
         first = state.stroke
         sending = resume_program(program, device, first, state.pauses_done)
-        done_before = state.pauses_done
-    cut = interpret(program, device).strokes[first].offset if total else 0
-    before_cut = sum(p.offset <= cut for p in program.pauses)
+        cut = strokes[first].offset
+        pending = sum(p.offset <= cut for p in program.pauses) - state.pauses_done
+    progress = JobProgress(sending, device)
     link = open_port(port, device, baudrate=baudrate, xonxoff=xonxoff, rtscts=rtscts)
     try:
         result = stream(link, sending, device, events=events, cancel=cancel, operator=operator,
-                        stall_timeout=stall_timeout)
+                        stall_timeout=stall_timeout, progress=progress)
     except StreamStopped as stop:
-        from foldfab.progress import JobProgress
-
-        stroke = first + JobProgress(sending, device).strokes_done(stop.acknowledged)
-        # pauses: the pending ones (if any) come first in a resumed program, as one
-        pending = before_cut - done_before if state is not None else 0
+        stroke = first + progress.strokes_done(stop.acknowledged)
         answered = stop.pauses_done
-        pauses_done = (done_before + (pending if answered else 0)
-                       + max(answered - (1 if pending else 0), 0)) if state is not None else answered
+        if pending and answered:  # the resumed program asks its pending pauses as one
+            answered += pending - 1
+        pauses_done = (state.pauses_done if state is not None else 0) + answered
         token = None
-        if stroke < total:
+        if stroke < len(strokes):
             token = state.token if state is not None else new_token()
             save_state(ResumeState(token, str(Path(job).resolve()), device.name, port,
-                                   program_hash(program), len(program.text), stroke, total,
+                                   program_hash(program), len(program.text), stroke, len(strokes),
                                    pauses_done, str(stop)))
         elif state is not None:
             state.path.unlink(missing_ok=True)
-        raise PlotStopped(stop, token, stroke, total) from None
+        raise PlotStopped(stop, token, stroke, len(strokes)) from None
     finally:
         link.close()
     if state is not None:

@@ -571,7 +571,7 @@ class _HPGLSender(_Sender):
         elif self.flow != "none":
             self.room(3)
         error = self.ask(b"OE;", "OE (output error)", self.patience(self.checked, self.sent))
-        self.credit = self.size  # the buffer is empty now
+        self.credit = self.capacity  # the buffer is empty now
         if error:
             meaning = HPGL_ERRORS.get(error, "unknown error")
             raise _Fault(f"{self.device.name} reports HP-GL error {error} ({meaning}) in program bytes "
@@ -628,7 +628,7 @@ class _GrblSender(_Sender):
         self.lines_ = self.split()
         self.pending: deque[_Line] = deque()  # sent, not answered
         self.in_rx = 0  # bytes of pending lines
-        self.answered = 0  # program lines answered ok
+        self.answered = 0  # program lines answered (ok or error): the next one's index
         self.ceiling = len(self.data)  # executed can never pass an unexecuted (error) line
         self.state, self.substate = "", None
         self.machine_position: tuple[float, float, float] | None = None
@@ -702,7 +702,8 @@ class _GrblSender(_Sender):
             meaning = GRBL_ERRORS.get(int(code), "unknown error") if code.isdigit() else "unknown error"
             where = f" at program line {line.number} ({line.data.decode().strip()!r})" \
                 if line is not None and line.number else ""
-            if line is not None and line.number:
+            if line is not None and line.number:  # answered, not executed
+                self.answered += 1
                 self.ceiling = min(self.ceiling, line.start)
             if not self.stopping:
                 raise _Fault(f"GRBL error {code}{where}: {meaning}")
