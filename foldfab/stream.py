@@ -22,10 +22,13 @@ the round trip drains the buffer with every flow control, and the answer is the 
 register (cleared by reading): 0 means every command since the previous checkpoint
 was understood.  Checkpoints come at pauses, at the end and every :data:`CHECK_EVERY`
 bytes (at most a buffer), so an error is found within that window and the executed
-count is exact there.
+count is exact there; with ``escb`` the buffer is first drained by ``ESC.B`` polls,
+which are answered at once, so a hung plotter shows within the stall timeout.
 Between checkpoints the executed count is conservative: ``ESC.B`` gives it exactly at
 each query; the other modes assume a full buffer and the bytes on the wire are still
-to execute.
+to execute.  A question left unanswered (a hang, a stop, a garbled ``ESC.B``) may be
+answered late, so the next one first asks ``OI`` (a text answer, unlike the numbers)
+and drops the numbers before it.
 
 GRBL 1.1 (:class:`_GrblSender`): the ``Grbl 1.1`` banner is awaited; without one after
 :data:`BANNER_WAIT` seconds a soft reset (0x18) provokes it.  Lines go by character
