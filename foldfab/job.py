@@ -250,12 +250,17 @@ def _parse_crease(table: TomlTable) -> CreaseSpec:
 
 def parse_job(text: str, path: str | Path = "<job>") -> Job:
     """Validate the TOML text of a job; relative paths resolve against ``path``'s folder."""
-    path = Path(path)
-    source = str(path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise FoldfabError(f"{source}: not valid TOML: {exc}") from None
+        raise FoldfabError(f"{path}: not valid TOML: {exc}") from None
+    return job_from_data(data, path, text)
+
+
+def job_from_data(data: dict[str, Any], path: str | Path = "<job>", text: str = "") -> Job:
+    """Validate a job's tables (what its TOML text holds), as :func:`parse_job` does."""
+    path = Path(path)
+    source = str(path)
     allowed = {"design", "profile", "trajectory", "crease", "fabrication"}
     unknown = sorted(set(data) - allowed)
     if unknown:

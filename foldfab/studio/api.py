@@ -262,13 +262,15 @@ class Studio:
     # -- jobs and designs
 
     def _job(self, request: dict):
-        """The request's job, validated exactly as its saved TOML would be: (Job, text)."""
-        from foldfab.job import parse_job, toml_text
+        """The request's job, validated as its TOML would be; ``text`` is that TOML.
+
+        The tables are checked as they are (reading the text back gives the same tables, a
+        tested property of :func:`~foldfab.job.toml_text`), which saves parsing TOML on every edit.
+        """
+        from foldfab.job import job_from_data, toml_text
 
         data = _field(request, "job", dict)
-        path = self._job_path(request)
-        text = toml_text(data)
-        return parse_job(text, path), text
+        return job_from_data(data, self._job_path(request), toml_text(data))
 
     def _device(self, name: str):
         from foldfab.devices import load_device
@@ -285,7 +287,7 @@ class Studio:
         from foldfab.design import build_design
 
         allow = _field(request, "allow_penetration", bool, False)
-        job, text = self._job(request)
+        job = self._job(request)
         try:
             design = build_design(job, allow_penetration=True)
         except FoldfabError as exc:
@@ -298,7 +300,7 @@ class Studio:
             message = (f"{job.path}: {penetration_message(cp, design.penetrations)}; change the design, "
                        "or tick 'allow penetration' to keep it")
             raise self._failure(job, message, penetrating=quads.astype(np.float32).ravel().round(4).tolist())
-        return design, text
+        return design
 
     @staticmethod
     def _failure(job, message: str, **extra: Any) -> ApiError:
@@ -353,7 +355,7 @@ class Studio:
 
         start = time.perf_counter()
         device, seq = _field(request, "device", str, ""), _field(request, "seq", int, 0)
-        design, text = self._build(request)
+        design = self._build(request)
         built = time.perf_counter()
         fit = self._fit(design, device)
         cp, grid = design.crease_pattern, design.grid
@@ -374,7 +376,7 @@ class Studio:
             "triangles": cp.triangles()[0].astype(np.uint32),
             "penetrating": cp.faces[np.unique(design.penetrations)].astype(np.uint32),
         }
-        header = {"summary": summary(design), "toml": text, "fit": fit, "closed": grid.closed,
+        header = {"summary": summary(design), "fit": fit, "closed": grid.closed,
                   "corner_seam": grid.corner_seam,
                   "edge_groups": {k: [s, c] for k, s, c in zip(EDGE_GROUPS, starts, counts)},
                   "seq": seq}
@@ -404,7 +406,7 @@ class Studio:
         from foldfab.atomic import write_text
         from foldfab.job import job_data, job_to_toml, parse_job
 
-        job, _ = self._job(request)
+        job = self._job(request)
         target = self._target(request, job.path, (".toml",))
         text = job_to_toml(job, target.parent)
         saved = parse_job(text, target)
@@ -416,7 +418,7 @@ class Studio:
         """Write the crease pattern or model: FOLD, SVG, ORIPA .cp or a mesh, by the file's suffix."""
         from foldfab.output import SUFFIX_KINDS, kind_of, write_design_file
 
-        design, _ = self._build(request)
+        design = self._build(request)
         target = self._target(request, design.job.path, tuple(SUFFIX_KINDS))
         kind = kind_of(target)
         try:
@@ -428,16 +430,17 @@ class Studio:
     def _fabricate(self, request: dict):
         from foldfab.fabrication import fabricate
 
-        design, text = self._build(request)
-        device = self._device(_field(request, "device", str, ""))
-        return design, text, device, fabricate(design, device)
+        device_name = _field(request, "device", str, "")
+        design = self._build(request)
+        device = self._device(device_name)
+        return design, device, fabricate(design, device)
 
     def preview(self, request: dict) -> dict:
         """The dry run: the program read back and drawn as the device would move."""
         from foldfab.interpret import interpret
         from foldfab.preview import render_preview
 
-        design, _, device, fab = self._fabricate(request)
+        design, device, fab = self._fabricate(request)
         svg = render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan)
         return {"svg": svg, "device": device.name, "strategy": fab.spec.strategy, "sheet": list(fab.plan.sheet),
                 "program_bytes": len(fab.program.text)}
@@ -446,7 +449,7 @@ class Studio:
         """Build the program now and add a snapshot of it to the plot queue."""
         from foldfab.queue import NewJob, SqliteQueueStore, default_queue_path, make_snapshot
 
-        design, text, device, fab = self._fabricate(request)
+        design, device, fab = self._fabricate(request)
         port = _field(request, "port", str, "") or device.port
         if not port:
             raise ApiError(f"{device.name} has no port: type one (a serial port such as /dev/ttyUSB0, or "
@@ -454,7 +457,7 @@ class Studio:
                            cause={"view": "file", "field": "port"})
         copies = _number(request, "copies", 1, 1, 1000)
         priority = _number(request, "priority", 0, -1000, 1000)
-        snapshot = make_snapshot(design.job.path, text, design.job.name, device, fab.program)
+        snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
         store = SqliteQueueStore(default_queue_path())
         try:
             ids = store.add([NewJob(snapshot, port, priority, copies)])

@@ -33,7 +33,7 @@ export function decode(buffer) {
     if (v[i + 1] < box[1]) box[1] = v[i + 1]; if (v[i + 1] > box[3]) box[3] = v[i + 1];
   }
   return {
-    summary: header.summary, fit: header.fit, toml: header.toml, closed: header.closed, server: header.server_ms,
+    summary: header.summary, fit: header.fit, closed: header.closed, server: header.server_ms,
     edgeGroups: header.edge_groups,
     profile: rows(a.profile, 2), trajectoryPoints: rows(a.trajectory, 3), planes: a.planes,
     paths: a.paths, pathShape: header.arrays.paths.shape.slice(0, 2),

@@ -1,0 +1,127 @@
+"""Studio latency, measured in the browser: from an edit to all four views redrawn.
+
+Run by hand:  python benchmarks/bench_studio.py
+Needs Chromium at /usr/bin/chromium and Playwright (pip install playwright).  Headless
+Chromium draws WebGL with SwiftShader (on the CPU), so a machine with a GPU is faster.
+
+Each edit moves one profile point the way a drag does (the same code path), then waits for
+the studio's "rendered" signal.  Figures per design size:
+
+- drawn: edit -> the four views drawn (profile, trajectory and crease canvases, WebGL frame issued);
+- frame: edit -> the next animation frame after that (the browser has painted it);
+- core:  the server's part (build with penetration check, fit, encoding), inside "drawn";
+- drag:  a 2-second mouse drag at 60 moves/s: updates shown per second.
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import tempfile
+import threading
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_design import wavy_design  # noqa: E402  (a sibling benchmark's design generator)
+
+from foldfab.studio.api import Studio  # noqa: E402
+from foldfab.studio.server import StudioServer  # noqa: E402
+
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--enable-unsafe-swiftshader"]
+SIZES = (("paper scale", 51, 20), ("20,000 faces (fine profile)", 1001, 20), ("20,000 faces (many corners)", 201, 100))
+EDITS, WARMUP = 40, 5
+
+EDIT = """async ([index, du]) => {
+    const studio = window.studio;
+    const done = new Promise((resolve) => window.addEventListener("studio:rendered", (e) => resolve(e.detail), {once: true}));
+    const point = studio.editableProfile()[index];
+    point[0] += du;
+    studio.edit();
+    studio.profile.render();
+    const update = await done;
+    await new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve)));
+    return {drawn: update.drawn, frame: update.frame, core: update.server && update.server.total,
+            status: document.body.dataset.status, faces: Number(document.body.dataset.shownFaces)};
+}"""
+
+
+def job_text(points: int, corners: int) -> tuple[str, float]:
+    profile, _ = wavy_design(points, corners)
+    rows = ", ".join(f"[{u:.9f}, {v:.9f}]" for u, v in profile)
+    step = 0.02 * float(abs(profile[:, 0]).max())
+    return (f'[profile]\npoints = [{rows}]\n[trajectory]\ntemplate = "regular"\ncorners = {corners}\nradius = 40\n',
+            step)
+
+
+def summary(values: list[float]) -> str:
+    values = sorted(values)
+    p90 = values[int(0.9 * (len(values) - 1))]
+    return f"median {statistics.median(values):6.1f}  p90 {p90:6.1f}  max {values[-1]:6.1f} ms"
+
+
+def measure(browser, folder: Path, label: str, points: int, corners: int) -> None:
+    text, step = job_text(points, corners)
+    job = folder / f"{points}x{corners}.toml"
+    job.write_text(text)
+    server = StudioServer(Studio(folder, job))
+    thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
+    thread.start()
+    page = browser.new_page(viewport={"width": 1400, "height": 900})
+    page.set_default_timeout(60_000)
+    try:
+        page.goto(server.url)
+        page.wait_for_function("Number(document.body.dataset.renderCount) > 0 && document.body.dataset.status === 'ok'")
+        index = points // 2
+        runs = []
+        for i in range(WARMUP + EDITS):
+            result = page.evaluate(EDIT, [index, step if i % 2 == 0 else -step])
+            if result["status"] != "ok":
+                raise SystemExit(f"{label}: the edit made the design invalid: {page.inner_text('#status-text')}")
+            if i >= WARMUP:
+                runs.append(result)
+        faces = runs[-1]["faces"]
+        print(f"{label} ({faces:,} faces), {EDITS} edits")
+        for key in ("drawn", "frame", "core"):
+            print(f"  {key:<6} {summary([r[key] for r in runs])}")
+        x, y = page.evaluate(f"window.studio.profile.view.toPage(...window.studio.profilePoints()[{index}])")
+        scale = page.evaluate("window.studio.profile.view.scale")
+        page.evaluate("document.querySelector('#snap').checked = false")
+        before = int(page.evaluate("document.body.dataset.renderCount"))
+        start = page.evaluate("performance.now()")
+        page.mouse.move(x, y)
+        page.mouse.down()
+        for k in range(120):  # 2 s at 60 moves per second, 0.2 mm to and fro
+            page.mouse.move(x + scale * 0.2 * (1 if k % 2 else -1) * step / max(step, 1e-9), y)
+            page.wait_for_timeout(1000 / 60)
+        page.mouse.up()
+        page.wait_for_function("document.body.dataset.status !== 'busy' && !window.studio.inflight")
+        seconds = (page.evaluate("performance.now()") - start) / 1000
+        shown = int(page.evaluate("document.body.dataset.renderCount")) - before
+        print(f"  drag   {shown / seconds:6.1f} updates shown per second")
+    finally:
+        page.close()
+        server.shutdown()
+        server.server_close()
+
+
+def main() -> None:
+    from playwright.sync_api import sync_playwright
+
+    with tempfile.TemporaryDirectory() as tmp, sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+        try:
+            print(f"Chromium {browser.version}, WebGL: "
+                  + browser.new_page().evaluate("""() => { const gl = document.createElement('canvas').getContext('webgl2');
+                        const info = gl.getExtension('WEBGL_debug_renderer_info');
+                        return gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER); }"""))
+            for label, points, corners in SIZES:
+                measure(browser, Path(tmp), label, points, corners)
+        finally:
+            browser.close()
+
+
+if __name__ == "__main__":
+    main()
