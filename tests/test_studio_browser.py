@@ -179,7 +179,7 @@ def test_odd_corners_show_the_error_and_keep_the_last_valid_design(page):
     assert not page.is_visible("#view-profile .error")
     # The crease pattern and the model still show the last valid design, marked as such.
     assert shown(page) == valid
-    assert page.inner_text("#view-creases .stale") == "last valid design"
+    assert page.inner_text("#view-creases .stale") == page.inner_text("#view-model .stale") == "last valid design"
     assert "32 faces" in page.inner_text("#model-info")
     assert page.evaluate("window.studio.model.objects.children.length") > 0
     # The trajectory view draws the 7 corners the user asked for.
@@ -188,7 +188,8 @@ def test_odd_corners_show_the_error_and_keep_the_last_valid_design(page):
     set_field(page, "#param-corners", 4)
     assert wait_render(page, before) == "ok"
     assert shown(page)["summary"]["corners"] == 4
-    assert not page.is_visible("#view-trajectory .error") and not page.query_selector("#view-creases .stale")
+    assert not page.is_visible("#view-trajectory .error") and not page.is_visible("#view-creases .stale")
+    assert not page.is_visible("#view-model .stale")
 
 
 def test_saved_job_builds_the_crease_pattern_the_studio_showed(page, folder):

@@ -8,14 +8,10 @@ export class CreaseView {
   constructor(studio, section) {
     this.studio = studio;
     this.section = section;
-    this.auto = true;   // refit on every design until the user pans or zooms
     this.info = section.querySelector("#cp-info");
     this.fitInfo = section.querySelector("#fit-info");
-    this.stale = null;
-    const canvas = section.querySelector("canvas");
-    this.view = new View2D(canvas, { draw: (view, ctx) => this.draw(view, ctx) });
-    for (const kind of ["pointerdown", "wheel"]) canvas.addEventListener(kind, () => { this.auto = false; });
-    section.querySelector(".fit").addEventListener("click", () => { this.auto = true; this.fit(); });
+    this.view = new View2D(section.querySelector("canvas"), { draw: (view, ctx) => this.draw(view, ctx) });
+    section.querySelector(".fit").addEventListener("click", () => { this.view.auto = true; this.fit(); });
   }
 
   fit() {
@@ -25,7 +21,7 @@ export class CreaseView {
 
   render() {
     const shown = this.studio.shown;
-    if (shown && (this.auto || !this.view.fitted)) this.fit(); else this.view.draw();
+    if (shown && (this.view.auto || !this.view.fitted)) this.fit(); else this.view.draw();
     if (!shown) return;
     const s = shown.summary;
     const c = s.creases;
@@ -34,19 +30,7 @@ export class CreaseView {
     const fit = shown.fit;
     this.fitInfo.classList.toggle("bad", Boolean(fit && !fit.ok));
     this.fitInfo.textContent = fit ? fit.message : "choose a device (top bar) to check that the sheet fits";
-    this.setStale(this.studio.error !== null);
-  }
-
-  setStale(stale) {
-    if (stale && !this.stale) {
-      this.stale = document.createElement("div");
-      this.stale.className = "stale";
-      this.stale.textContent = "last valid design";
-      this.view.canvas.parentElement.appendChild(this.stale);
-    } else if (!stale && this.stale) {
-      this.stale.remove();
-      this.stale = null;
-    }
+    this.section.querySelector(".stale").hidden = !this.studio.error;
   }
 
   draw(view, ctx) {

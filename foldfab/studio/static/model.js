@@ -63,8 +63,8 @@ export class ModelView {
     const v = shown.modelVertices;
     const box = new THREE.Box3().setFromArray(v);
     const sphere = box.getBoundingSphere(new THREE.Sphere());
-    const distance = sphere.radius / Math.sin(THREE.MathUtils.degToRad(this.camera.fov / 2)) * 1.08;
-    const direction = new THREE.Vector3(0.55, -0.75, 0.45).normalize();
+    const distance = sphere.radius / Math.sin(THREE.MathUtils.degToRad(this.camera.fov / 2)) * 0.95;
+    const direction = new THREE.Vector3(0.6, -0.8, 0.3).normalize();
     this.camera.position.copy(sphere.center).addScaledVector(direction, distance);
     this.camera.near = distance / 100;
     this.camera.far = distance * 100;
@@ -84,6 +84,7 @@ export class ModelView {
       if (!this.fitted) this.fit();
     }
     this.buildRejected(this.studio.error && this.studio.error.penetrating);
+    this.section.querySelector(".stale").hidden = !(this.studio.error && shown);
     if (shown) {
       const s = shown.summary;
       this.info.textContent = `${s.faces} faces · ${s.vertices} vertices · ${s.corners} corners · ` +

@@ -107,9 +107,11 @@ class Studio {
     this.history = [];
     this.at = -1;
     this.commit();
-    for (const view of [this.profile.view, this.trajectory.view]) view.fitted = false;
+    for (const view of [this.profile.view, this.trajectory.view, this.creases.view]) {
+      view.fitted = false;
+      view.auto = true;
+    }
     this.model.fitted = false;
-    this.creases.auto = true;
     this.syncControls();
     this.edit();
   }
@@ -301,6 +303,7 @@ class Studio {
       text.textContent = `${s.name}: ${s.corners} corners, ${s.line_elements} line elements, ${s.faces} faces` +
         (s.warnings.length ? ` · warning: ${s.warnings[0]}` : "");
     }
+    text.title = text.textContent;
     const server = this.lastUpdate.server;
     $("#timing").textContent = `updated in ${drawn.toFixed(0)} ms` + (server ? ` (core ${server.total.toFixed(0)} ms)` : "");
   }

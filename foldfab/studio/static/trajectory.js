@@ -30,7 +30,7 @@ export class TrajectoryView {
     });
     this.template.addEventListener("change", () => this.setTemplate(this.template.value));
     section.querySelector("#to-polyline").addEventListener("click", () => this.setTemplate("polyline"));
-    section.querySelector(".fit").addEventListener("click", () => this.fit());
+    section.querySelector(".fit").addEventListener("click", () => { this.view.auto = true; this.fit(); });
     this.table = new PointTable(section.querySelector("#trajectory-points"), ["x", "y", "z"], {
       change: (i, values) => { this.move(i, values); this.view.draw(); },
       remove: (i) => this.remove(i),
@@ -54,6 +54,7 @@ export class TrajectoryView {
   syncControls() {
     const spec = this.spec();
     this.template.value = spec.template;
+    this.section.querySelector("#to-polyline").hidden = spec.template === "polyline";
     this.params.innerHTML = "";
     if (spec.template === "polyline") {
       if (!this.isPolyline()) return;
@@ -204,7 +205,10 @@ export class TrajectoryView {
   }
 
   render() {
+    // A template that outgrows the view (or shrinks in it) is refitted; a polyline being edited stays put.
+    const box = bounds(this.points());
     if (!this.view.fitted) this.fit();
+    else if (box && !this.isPolyline()) this.view.keepInView(box);
     this.view.draw();
     this.table.update(this.points(), this.selected, this.errorPoint(), this.isPolyline());
   }

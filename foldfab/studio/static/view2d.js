@@ -21,6 +21,7 @@ export class View2D {
     this.width = 1;
     this.height = 1;
     this.fitted = false;
+    this.auto = true;        // views may refit to new content until the user pans or zooms
     this.pending = 0;
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
@@ -61,6 +62,15 @@ export class View2D {
     this.draw();
   }
 
+  /** Refit (while ``auto``) when the box leaves the view or shrinks to a small part of it. */
+  keepInView(box) {
+    const m = 0.05 * Math.min(this.width, this.height);
+    const [x0, y1] = this.toWorld(m, m), [x1, y0] = this.toWorld(this.width - m, this.height - m);
+    const outside = box[0] < x0 || box[1] < y0 || box[2] > x1 || box[3] > y1;
+    const small = box[2] - box[0] < 0.3 * (x1 - x0) && box[3] - box[1] < 0.3 * (y1 - y0);
+    if (this.auto && (outside || small)) this.fit(box, 0.12);
+  }
+
   /** Redraw now. */
   draw() {
     const ctx = this.ctx;
@@ -79,7 +89,8 @@ export class View2D {
   drawGrid(ctx) {
     const minor = niceStep(12 / this.scale);
     const major = minor * (String(minor).includes("2") ? 5 : 10);
-    const [x0, y1] = this.toWorld(0, 0), [x1, y0] = this.toWorld(this.width, this.height);
+    const m = 0.05 * Math.min(this.width, this.height);
+    const [x0, y1] = this.toWorld(m, m), [x1, y0] = this.toWorld(this.width - m, this.height - m);
     for (const [step, colour] of [[minor, "#f0f2f4"], [major, "#dde1e6"]]) {
       ctx.beginPath();
       for (let x = Math.ceil(x0 / step) * step; x <= x1; x += step) {
@@ -120,6 +131,7 @@ export class View2D {
       const [sx, sy] = local(e);
       const target = e.button === 0 && !e.shiftKey && this.h.hit ? this.h.hit(sx, sy) : null;
       drag = target ? { target } : { pan: [sx, sy, ...this.center] };
+      if (!target) this.auto = false;
       c.setPointerCapture(e.pointerId);
       e.preventDefault();
     });
@@ -147,6 +159,7 @@ export class View2D {
     c.addEventListener("pointercancel", end);
     c.addEventListener("wheel", (e) => {
       e.preventDefault();
+      this.auto = false;
       const [sx, sy] = local(e);
       const before = this.toWorld(sx, sy);
       this.scale *= Math.exp(-e.deltaY * 0.0015);
