@@ -242,3 +242,101 @@ def _studio_creases(studio: dict) -> set:
     for kind, (start, count) in studio["groups"].items():
         kinds[start:start + count] = kind
     return _creases(vertices, edges.tolist(), kinds.tolist())
+
+
+def trajectory_point_on_page(page, x: float, y: float) -> tuple[float, float]:
+    return tuple(page.evaluate(f"window.studio.trajectory.view.toPage({x}, {y})"))
+
+
+def test_free_polyline_trajectory_is_drawn_and_edited(page):
+    before = renders(page)
+    page.click("#to-polyline")
+    assert wait_render(page, before) == "ok"
+    assert page.evaluate("window.studio.job.trajectory.template") == "polyline"
+    points = page.evaluate("window.studio.job.trajectory.points")
+    assert len(points) == 8 and points[0] == points[-1], "the hexagon, closed, from mid-side to mid-side"
+    assert page.is_checked("#closed") and not page.is_visible("#to-polyline")
+    # Double-click the middle of the side from corner 0 to corner 1: a new point, on a straight line.
+    (x0, y0), (x1, y1) = points[1][:2], points[2][:2]
+    before = renders(page)
+    page.mouse.dblclick(*trajectory_point_on_page(page, (x0 + x1) / 2, (y0 + y1) / 2))
+    assert wait_render(page, before) == "ok"
+    assert len(page.evaluate("window.studio.job.trajectory.points")) == 9
+    assert shown(page)["summary"]["corners"] == 6, "a point without a turn has no mirror"
+    # Pull it out: now it is a seventh corner, which cannot close.
+    before = renders(page)
+    page.mouse.move(*trajectory_point_on_page(page, (x0 + x1) / 2, (y0 + y1) / 2))
+    page.mouse.down()
+    page.mouse.move(*trajectory_point_on_page(page, (x0 + x1) / 2 + 6, (y0 + y1) / 2 + 4), steps=3)
+    page.mouse.up()
+    assert wait_render(page, before) == "error"
+    assert "even number of corners" in page.inner_text("#view-trajectory .error")
+    # Right-click removes it again; Ctrl+Z (on the view) undoes the removal, Ctrl+Shift+Z redoes it.
+    moved = page.evaluate("window.studio.job.trajectory.points[2]")
+    before = renders(page)
+    page.mouse.click(*trajectory_point_on_page(page, *moved[:2]), button="right")
+    assert wait_render(page, before) == "ok"
+    assert len(page.evaluate("window.studio.job.trajectory.points")) == 8
+    before = renders(page)
+    page.keyboard.press("Control+z")
+    assert wait_render(page, before) == "error"
+    before = renders(page)
+    page.keyboard.press("Control+Shift+z")
+    assert wait_render(page, before) == "ok"
+    # Open it: the glue tab has nothing to join now, which the crease view says; without it, fine.
+    before = renders(page)
+    page.uncheck("#closed")
+    assert wait_render(page, before) == "error"
+    assert page.evaluate("document.body.dataset.errorView") == "creases"
+    assert "this trajectory is open" in page.inner_text("#view-creases .error")
+    assert "invalid" in page.get_attribute("#glue-tab", "class")
+    before = renders(page)
+    set_field(page, "#glue-tab", 0)
+    assert wait_render(page, before) == "ok"
+    assert shown(page)["summary"]["closed"] is False
+    assert len(page.evaluate("window.studio.job.trajectory.points")) == 7
+
+
+def test_numeric_entry_and_penetration_highlight(page):
+    page.click("#view-profile summary")
+    row = "#profile-points tr:nth-child(4)"          # header row, then points 0, 1, 2
+    before = renders(page)
+    page.fill(f"{row} td:nth-child(2) input", "6")
+    page.fill(f"{row} td:nth-child(3) input", "2")
+    assert wait_render(page, before) == "error"
+    assert page.evaluate("window.studio.job.profile.points[2]") == [6, 2]
+    assert page.evaluate("document.body.dataset.errorView") == "model"
+    assert "penetration" in page.inner_text("#view-model .error")
+    assert page.evaluate("window.studio.error.penetrating.length") > 0
+    assert page.evaluate("window.studio.model.rejected !== null"), "the intersecting faces are drawn over the last valid model"
+    before = renders(page)
+    page.check("#allow-penetration")
+    assert wait_render(page, before) == "ok"
+    assert shown(page)["summary"]["penetrations"] > 0
+    assert page.evaluate("window.studio.shown.penetrating.length") > 0
+    assert page.evaluate("window.studio.model.objects.children.some((o) => o.material && o.material.color && "
+                         "o.material.color.getHex() === 0xe53935)"), "penetrating faces red in 3D"
+    assert "penetration" in page.inner_text("#status-text")
+
+
+def test_device_fit_dry_run_export_and_queue(page, folder, monkeypatch):
+    monkeypatch.setenv("FOLDFAB_QUEUE", str(folder / "queue.sqlite3"))
+    before = renders(page)
+    page.select_option("#device", "grbl")
+    assert wait_render(page, before) == "ok"
+    assert page.inner_text("#fit-info").startswith("fits grbl")
+    page.click("#preview")
+    page.wait_for_function("document.querySelector('#preview-dialog').open && "
+                           "document.querySelector('#preview-body img') && document.querySelector('#preview-body img').naturalWidth > 0")
+    assert "grbl" in page.inner_text("#preview-info")
+    page.click("#preview-close")
+    page.select_option("#export-kind", ".cp")
+    assert page.input_value("#export-path") == "hexagon.cp"
+    page.click("#export")
+    page.wait_for_function("document.querySelector('#file-message').textContent.startsWith('exported')")
+    assert (folder / "hexagon.cp").read_text().startswith("1 ")
+    page.fill("#port", "sim://grbl")
+    page.click("#queue")
+    page.wait_for_function("document.querySelector('#file-message').textContent.startsWith('queued')")
+    assert "queued job 1 on grbl at sim://grbl" in page.inner_text("#file-message")
+    assert (folder / "queue.sqlite3").is_file()

@@ -1,7 +1,7 @@
 // The profile view: the profile polyline (u right, v up) and the trajectory seen end-on as a dot.
 // Points are the job's [profile].points; the dot sits at -offset, so dragging it sets [profile].offset.
 
-import { View2D, bounds, fmt, nearestHandle, nearestSegment } from "./view2d.js";
+import { View2D, along, bounds, fmt, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
 
 export class ProfileView {
@@ -25,6 +25,7 @@ export class ProfileView {
       change: (i, values) => { this.editable()[i] = values; studio.edit(); this.view.draw(); },
       remove: (i) => this.remove(i),
       select: (i) => { this.selected = i; this.view.draw(); },
+      commit: () => studio.commit(),
     });
   }
 
@@ -65,14 +66,18 @@ export class ProfileView {
     this.render();
   }
 
+  /** Double-click: on a segment, a point on it (the design does not change); elsewhere, a new end. */
   add(world) {
     const points = this.editable();
-    const p = this.studio.snapped(world);
     const [sx, sy] = this.view.toScreen(...world);
+    if (nearestHandle(this.view, points, sx, sy) >= 0) return;   // on a point: nothing to add
     const seg = nearestSegment(this.view, points, sx, sy);
-    let at;
-    if (seg >= 0) at = seg + 1;
-    else {
+    let at, p;
+    if (seg) {
+      at = seg.index + 1;
+      p = along(points[seg.index], points[at], seg.t);
+    } else {
+      p = this.studio.snapped(world);
       const d0 = Math.hypot(points[0][0] - p[0], points[0][1] - p[1]);
       const d1 = Math.hypot(points.at(-1)[0] - p[0], points.at(-1)[1] - p[1]);
       at = d0 < d1 ? 0 : points.length;

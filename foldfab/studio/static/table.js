@@ -6,7 +6,8 @@ export class PointTable {
   /**
    * @param {HTMLTableElement} table
    * @param {string[]} columns
-   * @param {{change: (i: number, values: number[]) => void, remove: (i: number) => void, select: (i: number) => void}} handlers
+   * @param {{change: (i: number, values: number[]) => void, remove: (i: number) => void,
+   *          select: (i: number) => void, commit: () => void}} handlers
    */
   constructor(table, columns, handlers) {
     this.table = table;
@@ -55,6 +56,7 @@ export class PointTable {
         input.step = "any";
         input.disabled = !editable;
         input.addEventListener("focus", () => this.h.select(i));
+        input.addEventListener("change", () => this.h.commit());
         input.addEventListener("input", () => {
           const values = [...row.querySelectorAll("input")].map((el) => parseFloat(el.value));
           const ok = values.every(Number.isFinite);

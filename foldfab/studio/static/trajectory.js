@@ -1,7 +1,7 @@
 // The trajectory view, seen from above: templates with their parameters, or a free polyline;
 // the reflection planes dashed, the line elements' paths in grey, the start and travel direction.
 
-import { View2D, bounds, nearestHandle, nearestSegment } from "./view2d.js";
+import { View2D, along, bounds, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
 
 const PARAMS = {
@@ -35,6 +35,7 @@ export class TrajectoryView {
       change: (i, values) => { this.move(i, values); this.view.draw(); },
       remove: (i) => this.remove(i),
       select: (i) => { this.selected = i; this.view.draw(); },
+      commit: () => studio.commit(),
     });
   }
 
@@ -164,22 +165,25 @@ export class TrajectoryView {
     this.render();
   }
 
+  /** Double-click: on a segment, a point on it (the design does not change); elsewhere, a new end. */
   add(world) {
     if (!this.isPolyline()) return;
     const points = this.spec().points;
     const [sx, sy] = this.view.toScreen(...world);
+    if (nearestHandle(this.view, points, sx, sy) >= 0) return;   // on a point: nothing to add
     const seg = nearestSegment(this.view, points, sx, sy);
-    const third = (i) => (points[0].length === 3 ? [points[Math.max(0, Math.min(points.length - 1, i))][2]] : []);
     let at;
-    if (seg >= 0 || this.closed(points)) {
-      at = (seg >= 0 ? seg : points.length - 2) + 1;
-      const z = points[0].length === 3 ? [(points[at - 1][2] + points[at][2]) / 2] : [];
-      points.splice(at, 0, [world[0], world[1], ...z]);
-    } else {
+    if (seg) {
+      at = seg.index + 1;
+      points.splice(at, 0, along(points[seg.index], points[at], seg.t));
+    } else if (!this.closed(points)) {
       const d0 = Math.hypot(points[0][0] - world[0], points[0][1] - world[1]);
       const d1 = Math.hypot(points.at(-1)[0] - world[0], points.at(-1)[1] - world[1]);
       at = d0 < d1 ? 0 : points.length;
-      points.splice(at, 0, [world[0], world[1], ...third(at === 0 ? 0 : points.length - 1)]);
+      const end = points[at === 0 ? 0 : points.length - 1];
+      points.splice(at, 0, [...this.studio.snapped(world), ...end.slice(2)]);   // a 3D path keeps its end's height
+    } else {
+      return;
     }
     this.selected = at;
     this.studio.edit();

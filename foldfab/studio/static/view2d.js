@@ -196,17 +196,25 @@ export function nearestHandle(view, points, sx, sy, radius = 9) {
   return best;
 }
 
-/** Index i of the segment (i, i+1) within `radius` px of screen point (sx, sy), or -1. */
+/**
+ * The segment (i, i+1) within `radius` px of screen point (sx, sy): {index, t} with the point at
+ * points[i] + t (points[i+1] - points[i]), or null.
+ */
 export function nearestSegment(view, points, sx, sy, radius = 10) {
-  let best = -1, bestD = radius;
+  let best = null, bestD = radius;
   for (let i = 0; i + 1 < points.length; i++) {
-    const a = view.toScreen(...points[i]), b = view.toScreen(...points[i + 1]);
+    const a = view.toScreen(points[i][0], points[i][1]), b = view.toScreen(points[i + 1][0], points[i + 1][1]);
     const dx = b[0] - a[0], dy = b[1] - a[1];
     const t = Math.max(0, Math.min(1, ((sx - a[0]) * dx + (sy - a[1]) * dy) / (dx * dx + dy * dy || 1)));
     const d = Math.hypot(a[0] + t * dx - sx, a[1] + t * dy - sy);
-    if (d <= bestD) { best = i; bestD = d; }
+    if (d <= bestD) { best = { index: i, t }; bestD = d; }
   }
   return best;
+}
+
+/** The point at parameter t of the segment a-b (any dimension): on the line, so it adds no turn. */
+export function along(a, b, t) {
+  return a.map((value, k) => value + t * (b[k] - value));
 }
 
 /** Bounding box [x0, y0, x1, y1] of [x, y] points (or null). */
