@@ -26,7 +26,7 @@ from foldfab.fabrication import fabricate, parse_fabrication
 from foldfab.interpret import HPGLMachine, HPGLTokenizer, interpret
 from foldfab.sim import SimOptions, create_simulator, parse_options
 from foldfab.sim.pty import serve_pty
-from foldfab.transport import open_port
+from foldfab.transport import open_port, register_handlers
 
 ROOT = Path(__file__).resolve().parent.parent
 JOB = ROOT / "jobs" / "hexagon-fig8a.toml"
@@ -570,8 +570,9 @@ def test_options_are_checked():
     for key, value in (("noise", "2"), ("time", "slow"), ("buffer", "-1"), ("nosie", "0.1")):
         with pytest.raises(FoldfabError, match=key):
             parse_options([(key, value)])
+    register_handlers()
     with pytest.raises(serial.SerialException, match="unknown option"):
-        serial.serial_for_url("sim://grbl?bogus=1")  # after open_port registered the handler
+        serial.serial_for_url("sim://grbl?bogus=1")
 
 
 def test_write_timeout_when_flow_control_holds():
@@ -602,6 +603,14 @@ class PtyServer:
         self.path = path
         self.ready.set()
 
+    def wait_done(self, received: int, idle: bool = True, limit: float = 20.0) -> None:
+        """Wait until the device has received ``received`` bytes (and, if ``idle``, done them)."""
+        end = time.monotonic() + limit
+        while self.sim.stats.bytes_received < received or \
+                (idle and self.sim.next_event() != float("inf")):
+            assert time.monotonic() < end, "the simulated plotter did not finish"
+            time.sleep(0.02)
+
     def close(self):
         self.stop.set()
         self.thread.join(5)
@@ -616,8 +625,7 @@ def test_pty_xonxoff_by_the_kernel_loses_nothing_naive_loses():
         server = PtyServer("roland-gx24", flow="xonxoff", buffer=256)
         port = serial.Serial(server.path, device.serial.baudrate, xonxoff=xonxoff, timeout=1)
         port.write(data)  # one write; with IXON the kernel stops at XOFF
-        while server.sim.stats.bytes_received < len(data) or server.sim.planner or server.sim.rx:
-            time.sleep(0.02)
+        server.wait_done(len(data), idle=xonxoff)  # garbled moves can take the naive one hours
         port.close()
         results[xonxoff] = server.close()
     careful, naive = results[True], results[False]
@@ -635,8 +643,7 @@ def test_pty_grbl_character_counting():
     assert port.read_until(b"help]\r\n").endswith(BANNER)
     Grbl(port).send(fab.program.text)
     port.close()
-    while server.sim.planner:
-        time.sleep(0.02)
+    server.wait_done(len(fab.program.text) + 1)
     sim = server.close()
     assert sim.stats.bytes_lost == 0
     assert same_strokes(sim.strokes, wanted(device, fab).strokes)

@@ -67,8 +67,9 @@ class Simulator:
         self.size = options.buffer or device.buffer.size
         self.capacity = self.size - self.RING_SLACK
         self.flow = options.flow or device.buffer.flow_control
-        self.high = self.size - max(16, self.size // 8)  # XOFF / CTS low at this fill
-        self.low = self.size // 2  # XON / CTS high again at or below this fill
+        headroom = max(1, min(self.size // 4, max(16, self.size // 8)))
+        self.high = self.size - headroom  # XOFF / CTS low at this fill
+        self.low = min(self.size // 2, self.high - 1)  # XON / CTS high again at or below
         self.stats = SimStats()
         self.t = 0.0  # device time, virtual seconds
         self.rx = bytearray()  # receive buffer
@@ -123,8 +124,8 @@ class Simulator:
         sent, t = 0, max(start, self.wire_free)
         while sent < len(data) and not self.disconnected:
             self.advance(t)
-            if self._host_stopped():
-                resumed = self.run_until(lambda: not self._host_stopped(), deadline)
+            if self.host_stopped():
+                resumed = self.run_until(lambda: not self.host_stopped(), deadline)
                 t = max(t, self.t)
                 if not resumed:
                     break
@@ -281,7 +282,8 @@ class Simulator:
 
     # --- arrival ------------------------------------------------------------------------
 
-    def _host_stopped(self) -> bool:
+    def host_stopped(self) -> bool:
+        """The host's driver holds its bytes back (XOFF received, or CTS low, as configured)."""
         return ("xonxoff" in self.host_flow and self.xoff) or \
             ("rtscts" in self.host_flow and not self.cts)
 

@@ -19,6 +19,7 @@ sleep would.  After ``disconnect_after`` bytes every call raises
 
 from __future__ import annotations
 
+import math
 import threading
 from urllib.parse import parse_qsl, unquote, urlsplit
 
@@ -28,6 +29,10 @@ from foldfab.sim.clock import IDLE_WAIT
 
 POLL_STEP = 0.01
 """Virtual seconds an empty poll lets pass in ``instant`` time."""
+WALL_STEP = 0.002
+"""Longest wall-clock sleep of a blocking call in real and fast time, so that a reply
+caused by another thread's write is seen at once (ports are shared by a reader and a
+writer thread; the lock keeps the simulator consistent)."""
 
 
 class Serial(SerialBase):
@@ -37,6 +42,7 @@ class Serial(SerialBase):
         self.simulator = None
         self.profile = None
         self._cancel = threading.Event()
+        self._lock = threading.RLock()
         super().__init__(*args, **kwargs)
 
     def open(self) -> None:
@@ -106,56 +112,78 @@ class Serial(SerialBase):
             sim.clock.sleep_until(sim.clock.now() + POLL_STEP)
             sim.advance(sim.clock.now())
 
+    def _wait(self, sim, deadline: float | None, ready) -> None:
+        """Block until ``ready()``, the virtual ``deadline``, or a moment (see WALL_STEP)."""
+        clock = sim.clock
+        if clock.rate is None:  # instant: run ahead to the event
+            with self._lock:
+                if sim.run_until(ready, deadline):
+                    clock.sleep_until(sim.t)
+                    return
+                if deadline is not None:
+                    clock.sleep_until(deadline)
+                    return
+            self._cancel.wait(IDLE_WAIT)  # nothing will ever happen: wait for cancel or close
+            return
+        wake = min(sim.next_event(), math.inf if deadline is None else deadline)
+        self._cancel.wait(min(WALL_STEP, clock.wall(max(0.0, wake - clock.now()))))
+        with self._lock:
+            self._live()
+
     @property
     def in_waiting(self) -> int:
-        sim = self._live()
-        if not sim.out:
-            self._poll(sim)
-        return len(sim.out)
+        with self._lock:
+            sim = self._live()
+            if not sim.out:
+                self._poll(sim)
+            return len(sim.out)
 
     def read(self, size: int = 1) -> bytes:
-        sim = self._live()
-        self._cancel.clear()
-        clock = sim.clock
-        deadline = None if self._timeout is None else clock.now() + self._timeout
-        data = bytearray(sim.take_output(size))
-        while len(data) < size and self._timeout != 0:
-            if sim.run_until(lambda: bool(sim.out), deadline):
-                clock.sleep_until(sim.t)
-                data += sim.take_output(size - len(data))
-                continue
-            if deadline is not None:  # timed out
-                clock.sleep_until(deadline)
+        with self._lock:
+            sim = self._live()
+            self._cancel.clear()
+            clock = sim.clock
+            deadline = None if self._timeout is None else clock.now() + self._timeout
+            data = bytearray(sim.take_output(size))
+            if not data and self._timeout == 0:
+                self._poll(sim)
+        while len(data) < size and self._timeout != 0 and not self._cancel.is_set():
+            self._wait(sim, deadline, lambda: bool(sim.out))
+            with self._lock:
+                data += self._live().take_output(size - len(data))
+            if deadline is not None and clock.now() >= deadline:
                 break
-            if self._cancel.wait(IDLE_WAIT) or not self.is_open:
-                break  # nothing will ever come; cancel_read() or close() ends the wait
-            sim.advance(clock.now())
-        if not data and self._timeout == 0:
-            self._poll(sim)
         return bytes(data)
 
     def write(self, data) -> int:
         if isinstance(data, int) or not isinstance(data, (bytes, bytearray, memoryview)):
             raise TypeError(f"write() takes bytes, not {type(data).__name__} "
                             "(pyserial's write(int) would send that many zero bytes)")
-        sim = self._live()
-        self._cancel.clear()
         data = bytes(data)
-        clock = sim.clock
-        deadline = None if self._write_timeout is None else clock.now() + self._write_timeout
+        with self._lock:
+            sim = self._live()
+            self._cancel.clear()
+            clock = sim.clock
+            start = clock.now()
+            deadline = None if self._write_timeout is None else start + self._write_timeout
         done = 0
-        while done < len(data):
-            sent, until = sim.transmit(data[done:], clock.now(), deadline)
-            done += sent
-            clock.sleep_until(until)
-            if sim.disconnected and done < len(data):
-                raise SerialException(f"{self._port}: device disconnected (cable pulled after "
-                                      f"{sim.stats.bytes_received} bytes)")
+        while done < len(data) and not self._cancel.is_set():
+            with self._lock:
+                self._live()
+                if clock.rate is None:  # instant: the whole write at once
+                    sent, until = sim.transmit(data[done:], start, deadline)
+                    clock.sleep_until(until)
+                else:  # real time: what the wire has carried by now
+                    now = clock.now()
+                    sent, _ = sim.transmit(data[done:], start, now if deadline is None else
+                                           min(now, deadline))
+                done += sent
+                if sim.disconnected and done < len(data):
+                    self._live()  # raises
             if done < len(data):
-                if deadline is not None:  # transmit stopped at the deadline
+                if deadline is not None and clock.now() >= deadline - sim.byte_time:
                     raise SerialTimeoutException("Write timeout")
-                if self._cancel.wait(IDLE_WAIT) or not self.is_open:  # flow control holds it
-                    break
+                self._wait(sim, deadline, lambda: not sim.host_stopped())
         return done
 
     def flush(self) -> None:
@@ -163,10 +191,12 @@ class Serial(SerialBase):
         self._live()
 
     def reset_input_buffer(self) -> None:
-        self._live().out.clear()
+        with self._lock:
+            self._live().out.clear()
 
     def reset_output_buffer(self) -> None:
-        self._live()
+        with self._lock:
+            self._live()
 
     def cancel_read(self) -> None:
         self._cancel.set()
@@ -178,10 +208,11 @@ class Serial(SerialBase):
 
     @property
     def cts(self) -> bool:
-        sim = self._live()
-        if not sim.cts:
-            self._poll(sim)
-        return sim.cts
+        with self._lock:
+            sim = self._live()
+            if not sim.cts:
+                self._poll(sim)
+            return sim.cts
 
     @property
     def dsr(self) -> bool:
