@@ -10,23 +10,20 @@ the studio's "rendered" signal.  Figures per design size:
 - drawn: edit -> the four views drawn (profile, trajectory and crease canvases, WebGL frame issued);
 - frame: edit -> the next animation frame after that (the browser has painted it);
 - core:  the server's part (build with penetration check, fit, encoding), inside "drawn";
-- drag:  a 2-second mouse drag at 60 moves/s: updates shown per second.
+- drag:  a 2-second mouse drag of the trajectory dot: mouse moves and updates shown per second.
 """
 
 from __future__ import annotations
 
 import statistics
+import subprocess
 import sys
 import tempfile
-import threading
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_design import wavy_design  # noqa: E402  (a sibling benchmark's design generator)
-
-from foldfab.studio.api import Studio  # noqa: E402
-from foldfab.studio.server import StudioServer  # noqa: E402
 
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -66,13 +63,14 @@ def measure(browser, folder: Path, label: str, points: int, corners: int) -> Non
     text, step = job_text(points, corners)
     job = folder / f"{points}x{corners}.toml"
     job.write_text(text)
-    server = StudioServer(Studio(folder, job))
-    thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
-    thread.start()
+    # The server in its own process, as `foldfab studio` runs it (not sharing a GIL with Playwright).
+    server = subprocess.Popen([sys.executable, "-m", "foldfab", "studio", job.name, "--no-browser"], cwd=folder,
+                              stdout=subprocess.PIPE, text=True)
+    url = server.stdout.readline().split()[2]
     page = browser.new_page(viewport={"width": 1400, "height": 900})
     page.set_default_timeout(60_000)
     try:
-        page.goto(server.url)
+        page.goto(url)
         page.wait_for_function("Number(document.body.dataset.renderCount) > 0 && document.body.dataset.status === 'ok'")
         index = points // 2
         runs = []
@@ -86,25 +84,27 @@ def measure(browser, folder: Path, label: str, points: int, corners: int) -> Non
         print(f"{label} ({faces:,} faces), {EDITS} edits")
         for key in ("drawn", "frame", "core"):
             print(f"  {key:<6} {summary([r[key] for r in runs])}")
-        x, y = page.evaluate(f"window.studio.profile.view.toPage(...window.studio.profilePoints()[{index}])")
-        scale = page.evaluate("window.studio.profile.view.scale")
-        page.evaluate("document.querySelector('#snap').checked = false")
+        # Drag the trajectory dot up and down (the profile's height offset: valid for any planar design).
+        x, y = page.evaluate("window.studio.profile.view.toPage(...window.studio.job.profile.offset.map((c) => -c))")
+        page.evaluate("document.querySelector('#snap').checked = false; window.moves = 0; "
+                      "window.studio.profile.view.canvas.addEventListener('pointermove', () => window.moves++)")
         before = int(page.evaluate("document.body.dataset.renderCount"))
         start = page.evaluate("performance.now()")
         page.mouse.move(x, y)
         page.mouse.down()
-        for k in range(120):  # 2 s at 60 moves per second, 0.2 mm to and fro
-            page.mouse.move(x + scale * 0.2 * (1 if k % 2 else -1) * step / max(step, 1e-9), y)
+        for k in range(120):  # about 2 s at 60 moves per second
+            page.mouse.move(x, y + (3 if k % 2 else -3))
             page.wait_for_timeout(1000 / 60)
         page.mouse.up()
         page.wait_for_function("document.body.dataset.status !== 'busy' && !window.studio.inflight")
         seconds = (page.evaluate("performance.now()") - start) / 1000
         shown = int(page.evaluate("document.body.dataset.renderCount")) - before
-        print(f"  drag   {shown / seconds:6.1f} updates shown per second")
+        moves = page.evaluate("window.moves")
+        print(f"  drag   {moves / seconds:6.1f} mouse moves/s, {shown / seconds:5.1f} updates shown/s")
     finally:
         page.close()
-        server.shutdown()
-        server.server_close()
+        server.terminate()
+        server.wait(timeout=30)
 
 
 def main() -> None:

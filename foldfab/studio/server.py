@@ -114,7 +114,10 @@ class Handler(BaseHTTPRequestHandler):
         self.send_header("X-Content-Type-Options", "nosniff")
         self.send_header("Referrer-Policy", "no-referrer")
         self.end_headers()
-        self.wfile.write(body)
+        try:
+            self.wfile.write(body)
+        except (BrokenPipeError, ConnectionResetError):  # the page went away (reload, closed tab)
+            self.close_connection = True
 
     def log_message(self, format: str, *args) -> None:  # noqa: A002 (http.server's signature)
         if not self.server.quiet:

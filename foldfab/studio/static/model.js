@@ -7,6 +7,17 @@ import { OrbitControls } from "./vendor/OrbitControls.js";
 const FRONT = 0xf1e4c3, BACK = 0x8fb3de, HIT = 0xe53935;
 const LINES = { V: 0x1e63d6, M: 0xe53935, B: 0x24292f };
 
+/** WebGL drawn on the CPU (SwiftShader, llvmpipe): multisampling there costs more than the frame itself. */
+function softwareRenderer() {
+  const gl = document.createElement("canvas").getContext("webgl2");
+  if (!gl) return false;
+  const info = gl.getExtension("WEBGL_debug_renderer_info");
+  const name = info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : "";
+  const lose = gl.getExtension("WEBGL_lose_context");
+  if (lose) lose.loseContext();
+  return /swiftshader|llvmpipe|software/i.test(name);
+}
+
 export class ModelView {
   constructor(studio, section) {
     this.studio = studio;
@@ -14,7 +25,7 @@ export class ModelView {
     this.canvas = section.querySelector("canvas");
     this.info = section.querySelector("#model-info");
     this.showCreases = section.querySelector("#show-creases");
-    this.renderer = new THREE.WebGLRenderer({ canvas: this.canvas, antialias: true });
+    this.renderer = new THREE.WebGLRenderer({ canvas: this.canvas, antialias: !softwareRenderer() });
     this.renderer.setPixelRatio(window.devicePixelRatio || 1);
     this.renderer.setClearColor(0xffffff);
     this.scene = new THREE.Scene();
