@@ -28,11 +28,17 @@
 from __future__ import annotations
 
 import re
+from typing import TYPE_CHECKING
 
 from foldfab.interpret import GcodeLine, Interpretation, read_gcode_line
 from foldfab.sim.device import Simulator
-from foldfab.sim.motion import Block, TimedGcode
+from foldfab.sim.motion import Block, Point, TimedGcode
 from foldfab.sim.record import PauseRecord
+
+if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
+    from foldfab.interpret import Stroke
+    from foldfab.sim.options import SimOptions
 
 BANNER = "\r\nGrbl 1.1h ['$' for help]"
 LINE_BUFFER = 80  # LINE_BUFFER_SIZE: 79 characters + terminator
@@ -49,7 +55,7 @@ class GrblController(Simulator):
     SPECIAL = re.compile(rb"[?!~\x18\x80-\xff]")
     COMPLETES = re.compile(rb"[\n\r]")
 
-    def __init__(self, device, options):
+    def __init__(self, device: DeviceProfile, options: SimOptions):
         super().__init__(device, options)
         self.alarm = False
         self.line = bytearray()  # the line being read (GRBL's line[] plus comments)
@@ -61,10 +67,10 @@ class GrblController(Simulator):
         self.ended = False  # M2 executed, nothing since
         self.hold: PauseRecord | None = None
         self.z = 0.0 if isinstance(device.gcode.pen_up, str) else device.gcode.pen_up
-        self.previous = []  # strokes drawn before the last soft reset
+        self.previous: list[Stroke] = []  # drawn before the last soft reset
         self.machine = self._new_machine((0.0, 0.0))
 
-    def _new_machine(self, position) -> TimedGcode:
+    def _new_machine(self, position: Point) -> TimedGcode:
         machine = TimedGcode(self.device, self.frame, None)
         machine.position = position
         machine.start_timing(self._enqueue)
@@ -78,7 +84,7 @@ class GrblController(Simulator):
         return Interpretation("gcode", strokes=self.strokes, travels=self.machine.sheet_travels(),
                               pauses=list(self.machine.result.pauses))
 
-    def _drawn(self):
+    def _drawn(self) -> list[Stroke]:
         mark = self.planner[0].mark if self.planner else self.machine.mark()
         return self.previous + self.machine.strokes_at(mark)
 

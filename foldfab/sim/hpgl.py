@@ -26,9 +26,16 @@ from __future__ import annotations
 import re
 from collections import deque
 
+from typing import TYPE_CHECKING
+
 from foldfab.interpret import COORDINATE_COMMANDS, HPGLCommand, HPGLTokenizer, Interpretation
 from foldfab.sim.device import Simulator
 from foldfab.sim.motion import TimedHPGL
+
+if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
+    from foldfab.interpret import Stroke
+    from foldfab.sim.options import SimOptions
 
 ACCEPTED_DEVICE_CONTROL = frozenset("ESC." + c for c in "@HIMNTRJ()YZ")
 """Handshake and configuration instructions: accepted, no effect in the simulator."""
@@ -42,7 +49,7 @@ class HPGLPlotter(Simulator):
     SPECIAL = re.compile(rb"\x1b")
     COMPLETES = re.compile(rb"[;,\s+\-A-Za-z\x03]")
 
-    def __init__(self, device, options):
+    def __init__(self, device: DeviceProfile, options: SimOptions):
         super().__init__(device, options)
         self.tokenizer = HPGLTokenizer(split_coordinates=True)
         self.escapes = HPGLTokenizer()
@@ -58,7 +65,7 @@ class HPGLPlotter(Simulator):
     def interpretation(self) -> Interpretation:
         return Interpretation("hpgl", strokes=self.strokes, travels=self.machine.sheet_travels())
 
-    def _drawn(self):
+    def _drawn(self) -> list[Stroke]:
         return self.machine.strokes_at(self.machine.mark())
 
     def _store(self, data: bytes) -> None:

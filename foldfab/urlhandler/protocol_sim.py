@@ -13,19 +13,26 @@ sending on XOFF and swallows XON/XOFF; with ``rtscts`` it stops while CTS is low
 it raises :class:`~serial.SerialTimeoutException` when flow control holds it longer.
 In ``instant`` time a poll that finds nothing (``in_waiting``, ``cts``, ``read``
 with ``timeout=0``) lets ``POLL_STEP`` of virtual time pass, as a polling host's
-sleep would.  After ``disconnect_after`` bytes every call raises
-:class:`~serial.SerialException`, as with a pulled cable.
+sleep would; instant time assumes one thread drives the port (real and fast time
+are thread-safe: a reader and a writer thread may share it).  Timeouts are virtual
+seconds.  ``inter_byte_timeout``, RTS, DTR and breaks are not simulated.  After
+``disconnect_after`` bytes every call raises :class:`~serial.SerialException`, as
+with a pulled cable.
 """
 
 from __future__ import annotations
 
 import math
 import threading
+from typing import TYPE_CHECKING, Callable
 from urllib.parse import parse_qsl, unquote, urlsplit
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, SerialTimeoutException
 
 from foldfab.sim.clock import IDLE_WAIT
+
+if TYPE_CHECKING:
+    from foldfab.sim.device import Simulator
 
 POLL_STEP = 0.01
 """Virtual seconds an empty poll lets pass in ``instant`` time."""
@@ -39,8 +46,8 @@ class Serial(SerialBase):
     """A simulated plotter behind pyserial's port API."""
 
     def __init__(self, *args, **kwargs):
-        self.simulator = None
-        self.profile = None
+        self.simulator: Simulator | None = None
+        self.profile = None  # a DeviceProfile for "sim://" without a name
         self._cancel = threading.Event()
         self._lock = threading.RLock()
         super().__init__(*args, **kwargs)
@@ -62,7 +69,7 @@ class Serial(SerialBase):
         self._reconfigure_port()
         self.simulator.connect()
 
-    def _create(self, url: str):
+    def _create(self, url: str) -> Simulator:
         from foldfab.devices import load_device
         from foldfab.errors import FoldfabError
         from foldfab.sim import create_simulator, parse_options
@@ -95,7 +102,7 @@ class Serial(SerialBase):
 
     # --- data ---------------------------------------------------------------------------
 
-    def _live(self):
+    def _live(self) -> Simulator:
         """The simulator, brought up to the host's time; raises if closed or unplugged."""
         if not self.is_open:
             raise PortNotOpenError()
@@ -106,13 +113,13 @@ class Serial(SerialBase):
         sim.advance(sim.clock.now())
         return sim
 
-    def _poll(self, sim) -> None:
+    def _poll(self, sim: Simulator) -> None:
         """An empty poll: in instant time, let a moment pass."""
         if sim.clock.rate is None:
             sim.clock.sleep_until(sim.clock.now() + POLL_STEP)
             sim.advance(sim.clock.now())
 
-    def _wait(self, sim, deadline: float | None, ready) -> None:
+    def _wait(self, sim: Simulator, deadline: float | None, ready: Callable[[], bool]) -> None:
         """Block until ``ready()``, the virtual ``deadline``, or a moment (see WALL_STEP)."""
         clock = sim.clock
         if clock.rate is None:  # instant: run ahead to the event
@@ -229,10 +236,10 @@ class Serial(SerialBase):
         return True
 
     def _update_rts_state(self) -> None:
-        """RTS is not simulated: the device never stops sending its short replies."""
+        """Not simulated: the device never stops sending its short replies."""
 
     def _update_dtr_state(self) -> None:
-        """DTR is not simulated (``reset_on_open`` models the Arduino reset at open)."""
+        """Not simulated (``reset_on_open`` models the Arduino reset at open)."""
 
     def _update_break_state(self) -> None:
-        """A break is not simulated."""
+        """Not simulated."""
