@@ -340,3 +340,26 @@ def test_device_fit_dry_run_export_and_queue(page, folder, monkeypatch):
     page.wait_for_function("document.querySelector('#file-message').textContent.startsWith('queued')")
     assert "queued job 1 on grbl at sim://grbl" in page.inner_text("#file-message")
     assert (folder / "queue.sqlite3").is_file()
+
+
+def test_drawing_a_new_trajectory(page):
+    before = renders(page)
+    set_field(page, "#glue-tab", 0)      # an open trajectory has no seam to glue
+    wait_render(page, before)
+    page.click("#draw")
+    assert page.evaluate("window.studio.job.trajectory") == {"template": "polyline", "points": []}
+    square = [(-30, -30), (30, -30), (30, 30), (-30, 30)]
+    page.mouse.click(*trajectory_point_on_page(page, *square[0]))
+    assert page.evaluate("window.studio.job.trajectory.points") == [[-30, -30]]
+    for corner in square[1:]:
+        before = renders(page)
+        page.mouse.click(*trajectory_point_on_page(page, *corner))
+        assert wait_render(page, before) == "ok", "an open polyline is a design as soon as it has two points"
+    assert shown(page)["summary"]["closed"] is False
+    before = renders(page)
+    page.mouse.click(*trajectory_point_on_page(page, *square[0]))   # back at the start: closed
+    assert wait_render(page, before) == "ok"
+    assert page.evaluate("window.studio.job.trajectory.points") == [list(p) for p in square + square[:1]]
+    assert not page.evaluate("window.studio.trajectory.drawing") and page.inner_text("#draw") == "draw new"
+    summary = shown(page)["summary"]
+    assert summary["closed"] is True and summary["corners"] == 4

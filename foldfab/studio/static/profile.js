@@ -11,7 +11,7 @@ export class ProfileView {
     this.selected = -1;
     this.view = new View2D(section.querySelector("canvas"), {
       draw: (view, ctx) => this.draw(view, ctx),
-      hit: (sx, sy) => this.hit(sx, sy),
+      hit: (sx, sy, press) => this.hit(sx, sy, press),
       drag: (target, world) => this.drag(target, world),
       drop: () => studio.commit(),
       dblclick: (world) => this.add(world),
@@ -41,11 +41,18 @@ export class ProfileView {
     return nearestHandle(this.view, this.points(), e.clientX - r.left, e.clientY - r.top);
   }
 
-  hit(sx, sy) {
+  /** What a press at (sx, sy) grabs (``press``: it is one, not a hover). */
+  hit(sx, sy, press) {
     const [ou, ov] = this.offset();
     const [dx, dy] = this.view.toScreen(-ou, -ov);
     const i = nearestHandle(this.view, this.points(), sx, sy);
-    if (i >= 0) { this.selected = i; this.view.draw(); return { point: i }; }
+    if (i >= 0) {
+      if (press) {
+        this.selected = i;
+        this.view.draw();
+      }
+      return { point: i };
+    }
     if (Math.hypot(dx - sx, dy - sy) <= 10) return { dot: true };
     return null;
   }

@@ -19,7 +19,7 @@ export class TrajectoryView {
     this.params = section.querySelector("#template-params");
     this.view = new View2D(section.querySelector("canvas"), {
       draw: (view, ctx) => this.draw(view, ctx),
-      hit: (sx, sy) => this.hit(sx, sy),
+      hit: (sx, sy, press) => this.hit(sx, sy, press),
       drag: (target, world) => this.drag(target, world),
       drop: () => studio.commit(),
       dblclick: (world) => this.add(world),
@@ -27,9 +27,13 @@ export class TrajectoryView {
     });
     this.view.canvas.addEventListener("keydown", (e) => {
       if ((e.key === "Delete" || e.key === "Backspace") && this.selected >= 0) { e.preventDefault(); this.remove(this.selected); }
+      if (e.key === "Escape" && this.drawing) this.stopDrawing();
     });
     this.template.addEventListener("change", () => this.setTemplate(this.template.value));
     section.querySelector("#to-polyline").addEventListener("click", () => this.setTemplate("polyline"));
+    this.drawButton = section.querySelector("#draw");
+    this.drawButton.addEventListener("click", () => (this.drawing ? this.stopDrawing() : this.startDrawing()));
+    this.drawing = false;
     section.querySelector(".fit").addEventListener("click", () => { this.view.auto = true; this.fit(); });
     this.table = new PointTable(section.querySelector("#trajectory-points"), ["x", "y", "z"], {
       change: (i, values) => { this.move(i, values); this.view.draw(); },
@@ -54,6 +58,11 @@ export class TrajectoryView {
   /** Build the parameter controls of the current template (sliders with number fields). */
   syncControls() {
     const spec = this.spec();
+    if (this.drawing && !this.isPolyline()) {   // another file or template: drawing is over
+      this.drawing = false;
+      this.drawButton.classList.remove("active");
+      this.drawButton.textContent = "draw new";
+    }
     this.template.value = spec.template;
     this.section.querySelector("#to-polyline").hidden = spec.template === "polyline";
     this.params.innerHTML = "";
@@ -137,12 +146,57 @@ export class TrajectoryView {
     return nearestHandle(this.view, handles, sx, sy);
   }
 
-  hit(sx, sy) {
+  /** Draw mode: every click on the view places the next point (and can drag it at once). */
+  startDrawing() {
+    this.studio.job.trajectory = { template: "polyline", points: [] };
+    this.drawing = true;
+    this.selected = -1;
+    this.drawButton.classList.add("active");
+    this.drawButton.textContent = "drawing… (Esc ends)";
+    this.syncControls();
+    this.view.canvas.focus();
+    this.render();
+  }
+
+  stopDrawing() {
+    this.drawing = false;
+    this.drawButton.classList.remove("active");
+    this.drawButton.textContent = "draw new";
+    this.syncControls();
+    this.studio.commit();
+  }
+
+  place(sx, sy) {
+    const points = this.spec().points;
+    if (points.length >= 3 && nearestHandle(this.view, [points[0]], sx, sy) === 0) {
+      points.push([...points[0]]);        // back at the start: closed, and done
+      this.stopDrawing();
+      this.studio.edit();
+      this.render();
+      return null;
+    }
+    if (points.length && nearestHandle(this.view, [points.at(-1)], sx, sy) === 0) {
+      this.stopDrawing();                 // the last point again (or a double-click): done
+      this.studio.edit();
+      return null;
+    }
+    points.push(this.studio.snapped(this.view.toWorld(sx, sy)));
+    this.selected = points.length - 1;
+    if (points.length >= 2) this.studio.edit();   // one point is no trajectory yet: no error while drawing
+    this.render();
+    return { point: this.selected };
+  }
+
+  /** What a press at (sx, sy) grabs (``press``: it is one, not a hover). */
+  hit(sx, sy, press) {
+    if (this.drawing) return press ? this.place(sx, sy) : { draw: true };
     if (!this.isPolyline()) return null;
     const i = this.handle(sx, sy);
     if (i < 0) return null;
-    this.selected = i;
-    this.view.draw();
+    if (press) {
+      this.selected = i;
+      this.view.draw();
+    }
     return { point: i };
   }
 
@@ -228,7 +282,7 @@ export class TrajectoryView {
     const shown = this.studio.shown;
     const failing = this.studio.error !== null;
     if (shown) {
-      ctx.globalAlpha = failing ? 0.35 : 1;
+      ctx.globalAlpha = failing || this.drawing ? 0.35 : 1;
       this.drawPaths(view, ctx, shown);
       this.drawPlanes(view, ctx, shown);
       if (failing) {

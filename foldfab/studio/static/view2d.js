@@ -6,7 +6,7 @@ export class View2D {
   /**
    * @param {HTMLCanvasElement} canvas
    * @param {{draw: (view: View2D, ctx: CanvasRenderingContext2D) => void,
-   *          hit?: (x: number, y: number) => object | null,
+   *          hit?: (sx: number, sy: number, press: boolean) => object | null,
    *          drag?: (target: object, world: number[], event: PointerEvent) => void,
    *          drop?: (target: object) => void,
    *          dblclick?: (world: number[], event: MouseEvent) => void,
@@ -129,7 +129,7 @@ export class View2D {
       if (e.button === 2) return;
       c.focus();
       const [sx, sy] = local(e);
-      const target = e.button === 0 && !e.shiftKey && this.h.hit ? this.h.hit(sx, sy) : null;
+      const target = e.button === 0 && !e.shiftKey && this.h.hit ? this.h.hit(sx, sy, true) : null;
       drag = target ? { target } : { pan: [sx, sy, ...this.center] };
       if (!target) this.auto = false;
       c.setPointerCapture(e.pointerId);
@@ -138,7 +138,7 @@ export class View2D {
     c.addEventListener("pointermove", (e) => {
       if (!drag) {
         const [sx, sy] = local(e);
-        c.style.cursor = this.h.hit && this.h.hit(sx, sy) ? "grab" : "crosshair";
+        c.style.cursor = this.h.hit && this.h.hit(sx, sy, false) ? "grab" : "crosshair";
         return;
       }
       const [sx, sy] = local(e);
