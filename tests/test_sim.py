@@ -700,3 +700,23 @@ def test_create_simulator_without_a_port():
     assert sent == len(text) and done == pytest.approx(len(text) * 10 / 9600)  # 8N1 at 9600 baud
     sim.run_until_idle()
     assert same_strokes(sim.strokes, interpret(text, device).strokes)
+
+
+def test_a_new_port_plugs_into_the_same_device():
+    """After a pulled cable, a new port object given the simulator reaches the same board."""
+    device, fab = job("grbl")
+    port, g = grbl(timeout=60, disconnect_after=600, reset_on_open=0)
+    assert port.read(1) == b""  # this bridge does not reset the board: no banner
+    with pytest.raises(serial.SerialException, match="disconnected"):
+        g.send(fab.program.text)
+    sim = port.simulator
+    sim.run_until_idle()  # the board finishes its planner while unplugged
+    drawn = len(sim.strokes)
+    again = serial.serial_for_url("sim://grbl", do_not_open=True, baudrate=115200, timeout=1)
+    again.simulator = sim
+    again.open()
+    assert again.in_waiting == 0 and len(sim.strokes) == drawn
+    again.write(b"?")
+    assert again.read_until(b"\r\n").startswith(b"<Idle|")  # position kept, no alarm
+    again.write(b"\x18")
+    assert again.read_until(b"help]\r\n") == BANNER

@@ -317,7 +317,6 @@ class Simulator:
         """``data`` (``clean`` before noise) arrives byte by byte after ``t``."""
         first, last = t + self.byte_time, t + len(data) * self.byte_time
         self.advance(first)
-        self._note_arrival(first)
         stats = self.stats
         stats.bytes_received += len(data)
         if self._rng is not None:
@@ -326,6 +325,7 @@ class Simulator:
         if len(data) == 1 and (self._in_special() or self.SPECIAL.match(data)):
             self._special(data[0])
         else:
+            self._note_arrival(first)
             keep = data[:max(self.free, 0)]
             lost = len(data) - len(keep)
             if keep:
@@ -347,6 +347,7 @@ class Simulator:
         self.advance(last)
 
     def _note_arrival(self, t: float) -> None:
+        """Job data (not a realtime or device-control byte) arrives: classify the idle time."""
         stats = self.stats
         if stats.first_byte is None:
             stats.first_byte = t
@@ -400,7 +401,7 @@ class Simulator:
             self._send_flow(XON)
 
     def _send_flow(self, byte: int) -> None:
-        if self.flow != "xonxoff" or self.options.mute:
+        if self.flow != "xonxoff" or self.options.mute or self.disconnected:
             return
         self.xoff = byte == XOFF
         if self.xoff:
@@ -411,8 +412,8 @@ class Simulator:
             self.out.append(byte)
 
     def reply(self, text: str) -> None:
-        """Send ``text`` and the protocol's line terminator (nothing when mute)."""
-        if not self.options.mute:
+        """Send ``text`` and the protocol's line terminator (lost when mute or unplugged)."""
+        if not self.options.mute and not self.disconnected:
             self.out += (text + self.TERMINATOR).encode("ascii")
 
     # --- protocol -----------------------------------------------------------------------

@@ -51,14 +51,15 @@ class SimStats:
     """Held or parked for the operator (see ``pauses``)."""
     stalled_time: float = 0.0
     first_byte: float | None = None
-    """Virtual time the first byte arrived."""
+    """Virtual time the first byte of job data arrived (realtime and device-control bytes
+    such as ``?`` or ``ESC.B`` are not job data)."""
     last_activity: float | None = None
     """Virtual time the last command or move finished."""
     pauses: list[PauseRecord] = field(default_factory=list)
 
     @property
     def plot_time(self) -> float:
-        """From the first byte received to the end of the last move (virtual seconds)."""
+        """From the first byte of job data to the end of the last move (virtual seconds)."""
         if self.first_byte is None or self.last_activity is None:
             return 0.0
         return max(0.0, self.last_activity - self.first_byte)

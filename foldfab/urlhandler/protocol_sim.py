@@ -64,7 +64,8 @@ class Serial(SerialBase):
                 self.simulator = self._create(self._port)
             except FoldfabError as exc:
                 raise SerialException(str(exc)) from None
-        self.simulator.disconnected = False  # the cable is back in
+        self.simulator.disconnected = False  # the cable is back in, with a fresh driver
+        self.simulator.xoff = False
         self.is_open = True
         self._reconfigure_port()
         self.simulator.connect()
