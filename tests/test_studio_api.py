@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from foldfab.design import build_design, load_design, summary
+from foldfab.design import load_design, summary
 from foldfab.job import job_data, load_job
 from foldfab.studio.api import MAX_BODY, Studio, error_cause, pack, unpack
 from foldfab.studio.server import StudioServer
