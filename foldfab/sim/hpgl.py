@@ -14,7 +14,7 @@ on arrival and never buffered, as on HP plotters.
 Answers (each ends in CR): ``ESC.B`` free bytes, ``ESC.L`` buffer size, ``ESC.E`` the
 I/O error (0; 16 after bytes were lost to an overrun; 11 for an unknown ``ESC.``
 instruction), ``ESC.O`` extended status (8 while the buffer is empty and the pen at
-rest, else 0); ``OI`` the profile's model, ``OS`` status bits (1 pen down, 8
+rest, else 0), ``ESC.A`` the profile's model; ``OI`` the same, ``OS`` status bits (1 pen down, 8
 initialized, cleared by reading, 16 ready, 32 error), ``OE`` the HP-GL error (0 none,
 1 instruction not recognized, 2 wrong parameters; cleared by reading), ``OA`` the pen
 position ``x,y,pen`` in plotter units.  Output instructions execute in order, after
@@ -141,6 +141,8 @@ class HPGLPlotter(Simulator):
             self.reply(str(self.free))
         elif name == "ESC.L":
             self.reply(str(self.size))
+        elif name == "ESC.A":
+            self.reply(self.device.model)
         elif name == "ESC.E":
             self.reply(str(self.io_error))
             self.io_error = 0
