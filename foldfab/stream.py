@@ -803,17 +803,25 @@ class _GrblSender(_Sender):
 
     def send_program(self) -> None:
         self.connect()
-        for index, line in enumerate(self.lines_):
+        index = 0
+        while index < len(self.lines_):
             self.check_cancel()
+            line = self.lines_[index]
             self.wait(lambda: self.in_rx + len(line.data) <= GRBL_RX_BUFFER,
                       "room in its receive buffer", self.patience(self.acked, line.end))
-            self.write(line.data)
-            self.pending.append(line)
-            self.in_rx += len(line.data)
-            self.sent = line.end
-            pause = self.pause_ends.get(line.end)
+            batch = [line]  # as many lines as fit, in one write
+            while (index + len(batch) < len(self.lines_) and batch[-1].end not in self.pause_ends
+                   and self.in_rx + sum(len(b.data) for b in batch)
+                   + len(self.lines_[index + len(batch)].data) <= GRBL_RX_BUFFER):
+                batch.append(self.lines_[index + len(batch)])
+            self.write(b"".join(b.data for b in batch))
+            self.pending.extend(batch)
+            self.in_rx += sum(len(b.data) for b in batch)
+            self.sent = batch[-1].end
+            index += len(batch)
+            pause = self.pause_ends.get(self.sent)
             if pause is not None:
-                self.hold_for(pause.message, index)
+                self.hold_for(pause.message, index - 1)
         self.wait(self.idle, "the end of motion", self.patience(self.acked, len(self.data)))
 
     def hold_for(self, message: str, index: int) -> None:
