@@ -25,8 +25,6 @@ if TYPE_CHECKING:
     from foldfab.interpret import Interpretation
     from foldfab.program import Program
 
-EVENT_KINDS = ("start", "progress", "pause", "resume", "done", "stopped")
-
 
 @dataclass(frozen=True)
 class ProgressEvent:

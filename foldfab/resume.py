@@ -144,7 +144,7 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
     same tool, force and speed.
     """
     from foldfab.interpret import interpret
-    from foldfab.program import PauseMark, Program, Section
+    from foldfab.program import PauseMark, Program
 
     strokes = interpret(program, device).strokes
     if not 0 <= stroke < len(strokes):

@@ -24,9 +24,9 @@ from foldfab.progress import JobProgress
 from foldfab.resume import (PlotStopped, ResumeState, check_state, load_state, plot, program_hash,
                             resume_program, save_state, state_dir)
 from foldfab.stream import CHECK_EVERY, StreamStopped, stream
-from test_stream import (FAST_BAUD, JOBS, ROOT, device_for, fabricated, same_strokes, sim_port,  # noqa: F401
-                         xonxoff_device,
+from test_stream import (FAST_BAUD, JOBS, ROOT, device_for, fabricated, same_strokes, sim_port,
                          strokes_of)
+from test_stream import xonxoff_device  # noqa: F401  (a fixture)
 
 FLOWS = {"escb": "hp7475a", "rtscts": "graphtec-ce6000", "none": "roland-gx24", "grbl": "grbl",
          "xonxoff": "xonxoff"}

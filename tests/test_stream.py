@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import functools
 import time
-import os
 import re
 import signal
 import subprocess
