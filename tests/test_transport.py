@@ -93,12 +93,12 @@ def test_device_paths_and_spy_urls_on_a_pty(tmp_path):
     thread.start()
     try:
         assert ready.wait(5)
-        port = open_port(box["path"], device)
+        port = open_port(box["path"], device, write_timeout=5)
         port.write(b"\x1b.L")
         assert port.read_until(b"\r") == b"1024\r"
         port.close()
         log = tmp_path / "spy.txt"
-        spied = open_port(f"spy://{box['path']}?file={log}", device)
+        spied = open_port(f"spy://{box['path']}?file={log}", device, write_timeout=5)
         spied.write(b"IN;OS;")
         assert spied.read_until(b"\r") == b"24\r"
         spied.close()
