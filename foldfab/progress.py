@@ -151,56 +151,58 @@ def describe(event: ProgressEvent) -> str:
     return f"{head}  ETA {clock(event.eta)}"
 
 
-class ProgressBar:
+class _Reporter:
+    """Shared throttling: progress events at most every ``interval`` s, state changes always."""
+
+    def __init__(self, out: TextIO, interval: float):
+        self.out, self.interval = out, interval
+        self.last = -1e9
+
+    def __call__(self, event: ProgressEvent) -> None:
+        now = time.monotonic()
+        if event.kind == "progress" and now - self.last < self.interval:
+            return
+        self.last = now
+        self.out.write(self.render(event))
+        self.out.flush()
+
+    def render(self, event: ProgressEvent) -> str:
+        raise NotImplementedError
+
+
+class ProgressBar(_Reporter):
     """A bar redrawn in place on a terminal (at most ``rate`` times a second)."""
 
     def __init__(self, out: TextIO, width: int = 30, rate: float = 10.0):
-        self.out, self.width, self.interval = out, width, 1.0 / rate
-        self.last = -1e9
+        super().__init__(out, 1.0 / rate)
+        self.width = width
 
-    def __call__(self, event: ProgressEvent) -> None:
-        now = time.monotonic()
-        if event.kind == "progress" and now - self.last < self.interval:
-            return
-        self.last = now
+    def render(self, event: ProgressEvent) -> str:
         filled = int(round(self.width * event.fraction))
         bar = "#" * filled + "-" * (self.width - filled)
         end = "\n" if event.kind in ("pause", "done", "stopped") else ""
-        self.out.write(f"\r\x1b[K[{bar}] {describe(event)}{end}")
-        self.out.flush()
+        return f"\r\x1b[K[{bar}] {describe(event)}{end}"
 
 
-class LineReporter:
+class LineReporter(_Reporter):
     """Plain lines for logs and pipes: every ``interval`` seconds and at every state change."""
 
     def __init__(self, out: TextIO, interval: float = 5.0):
-        self.out, self.interval = out, interval
-        self.last = -1e9
+        super().__init__(out, interval)
 
-    def __call__(self, event: ProgressEvent) -> None:
-        now = time.monotonic()
-        if event.kind == "progress" and now - self.last < self.interval:
-            return
-        self.last = now
-        self.out.write(describe(event) + "\n")
-        self.out.flush()
+    def render(self, event: ProgressEvent) -> str:
+        return describe(event) + "\n"
 
 
-class JsonReporter:
+class JsonReporter(_Reporter):
     """One JSON object per event and line (``foldfab plot --json``)."""
 
     def __init__(self, out: TextIO, interval: float = 0.5):
-        self.out, self.interval = out, interval
-        self.last = -1e9
+        super().__init__(out, interval)
 
-    def __call__(self, event: ProgressEvent) -> None:
-        now = time.monotonic()
-        if event.kind == "progress" and now - self.last < self.interval:
-            return
-        self.last = now
+    def render(self, event: ProgressEvent) -> str:
         data = event.as_dict()
-        self.out.write(json.dumps({"event": data.pop("kind"), **data}) + "\n")
-        self.out.flush()
+        return json.dumps({"event": data.pop("kind"), **data}) + "\n"
 
 
 def reporter(out: TextIO, as_json: bool = False) -> Callable[[ProgressEvent], None]:
