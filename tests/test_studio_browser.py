@@ -245,6 +245,9 @@ def _studio_creases(studio: dict) -> set:
 
 
 def trajectory_point_on_page(page, x: float, y: float) -> tuple[float, float]:
+    """Page position of a trajectory point, once the layout has settled (two animation
+    frames: a hint or error line appearing can move the view between mapping and click)."""
+    page.evaluate("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
     return tuple(page.evaluate(f"window.studio.trajectory.view.toPage({x}, {y})"))
 
 
