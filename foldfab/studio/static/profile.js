@@ -1,7 +1,7 @@
 // The profile view: the profile polyline (u right, v up) and the trajectory seen end-on as a dot.
 // Points are the job's [profile].points; the dot sits at -offset, so dragging it sets [profile].offset.
 
-import { View2D, along, bounds, fmt, nearestHandle, nearestSegment } from "./view2d.js";
+import { along, bounds, editorView, fmt, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
 
 export class ProfileView {
@@ -9,17 +9,7 @@ export class ProfileView {
     this.studio = studio;
     this.section = section;
     this.selected = -1;
-    this.view = new View2D(section.querySelector("canvas"), {
-      draw: (view, ctx) => this.draw(view, ctx),
-      hit: (sx, sy, press) => this.hit(sx, sy, press),
-      drag: (target, world) => this.drag(target, world),
-      drop: () => studio.commit(),
-      dblclick: (world) => this.add(world),
-      context: (world, e) => this.remove(this.handleAt(e)),
-    });
-    this.view.canvas.addEventListener("keydown", (e) => {
-      if ((e.key === "Delete" || e.key === "Backspace") && this.selected >= 0) { e.preventDefault(); this.remove(this.selected); }
-    });
+    this.view = editorView(this, section, studio);
     section.querySelector(".fit").addEventListener("click", () => this.fit());
     this.table = new PointTable(section.querySelector("#profile-points"), ["u", "v"], {
       change: (i, values) => { this.editable()[i] = values; studio.edit(); this.view.draw(); },

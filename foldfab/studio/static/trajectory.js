@@ -1,7 +1,7 @@
 // The trajectory view, seen from above: templates with their parameters, or a free polyline;
 // the reflection planes dashed, the line elements' paths in grey, the start and travel direction.
 
-import { View2D, along, bounds, nearestHandle, nearestSegment } from "./view2d.js";
+import { along, bounds, editorView, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
 
 const PARAMS = {
@@ -17,16 +17,7 @@ export class TrajectoryView {
     this.selected = -1;
     this.template = section.querySelector("#template");
     this.params = section.querySelector("#template-params");
-    this.view = new View2D(section.querySelector("canvas"), {
-      draw: (view, ctx) => this.draw(view, ctx),
-      hit: (sx, sy, press) => this.hit(sx, sy, press),
-      drag: (target, world) => this.drag(target, world),
-      drop: () => studio.commit(),
-      dblclick: (world) => this.add(world),
-      context: (world, e) => this.remove(this.handleAt(e)),
-    });
-    this.view.canvas.addEventListener("keydown", (e) => {
-      if ((e.key === "Delete" || e.key === "Backspace") && this.selected >= 0) { e.preventDefault(); this.remove(this.selected); }
+    this.view = editorView(this, section, studio, (e) => {
       if (e.key === "Escape" && this.drawing) this.stopDrawing();
     });
     this.template.addEventListener("change", () => this.setTemplate(this.template.value));

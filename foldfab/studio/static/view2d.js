@@ -227,3 +227,25 @@ export function bounds(points) {
   }
   return box;
 }
+
+
+/**
+ * The canvas of a point editor (profile or trajectory): drag, drop, double-click to add,
+ * right-click or Delete to remove.  ``editor`` provides draw, hit, drag, add, remove,
+ * handleAt and ``selected``; ``onKey`` handles the editor's own extra keys.
+ */
+export function editorView(editor, section, studio, onKey = () => {}) {
+  const view = new View2D(section.querySelector("canvas"), {
+    draw: (view, ctx) => editor.draw(view, ctx),
+    hit: (sx, sy, press) => editor.hit(sx, sy, press),
+    drag: (target, world) => editor.drag(target, world),
+    drop: () => studio.commit(),
+    dblclick: (world) => editor.add(world),
+    context: (world, e) => editor.remove(editor.handleAt(e)),
+  });
+  view.canvas.addEventListener("keydown", (e) => {
+    if ((e.key === "Delete" || e.key === "Backspace") && editor.selected >= 0) { e.preventDefault(); editor.remove(editor.selected); }
+    onKey(e);
+  });
+  return view;
+}
