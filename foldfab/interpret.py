@@ -142,6 +142,11 @@ class HPGLTokenizer:
         self.offset += n
         return out
 
+    def abort(self) -> None:
+        """Drop the instruction being read (``ESC.K``: its bytes never form a command)."""
+        self._pending.clear()
+        self._state = "idle"
+
     def close(self) -> list[HPGLCommand]:
         """End of stream: return the command still waiting for a terminator, if any."""
         return [self._finish()] if self._state in ("params", "label") else []

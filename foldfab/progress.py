@@ -146,7 +146,7 @@ def describe(event: ProgressEvent) -> str:
             f"{event.layer:<9} {clock(event.elapsed)} elapsed")
     if event.kind == "done":
         return f"{head}  done"
-    if event.kind in ("pause", "stopped"):
+    if event.kind in ("pause", "stopped") or event.message:
         return f"{head}  {event.kind}" + (f": {event.message}" if event.message else "")
     return f"{head}  ETA {clock(event.eta)}"
 
@@ -180,7 +180,7 @@ class ProgressBar(_Reporter):
     def render(self, event: ProgressEvent) -> str:
         filled = int(round(self.width * event.fraction))
         bar = "#" * filled + "-" * (self.width - filled)
-        end = "\n" if event.kind in ("pause", "done", "stopped") else ""
+        end = "\n" if event.kind in ("pause", "done", "stopped") or event.message else ""
         return f"\r\x1b[K[{bar}] {describe(event)}{end}"
 
 

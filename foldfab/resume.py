@@ -11,6 +11,14 @@ the pen up), the tool state in force at the first stroke not yet drawn (the last
 the tool up to that stroke's start, then the original text from that stroke on.
 No stroke is lost and only the interrupted stroke can be drawn twice.
 
+The acknowledged count lags behind the plotter: a plotter whose host died or whose
+cable was pulled goes on drawing what its buffer holds.  Before resuming, an HP-GL
+plotter is therefore asked where its pen is (:func:`locate_resume`): what it still
+holds is discarded, and the strokes it drew after the last acknowledgement are
+skipped (:func:`first_undrawn` never skips one it did not draw).  GRBL boards reset
+when their port opens, which clears their position, so G-code jobs resume at the
+last acknowledged stroke.
+
 Resume states are JSON files in ``$XDG_STATE_HOME/foldfab/resume/`` (default
 ``~/.local/state``), one per token, written atomically::
 
@@ -40,9 +48,10 @@ from foldfab.errors import FoldfabError
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
+    from foldfab.interpret import Stroke
     from foldfab.progress import ProgressEvent
     from foldfab.program import Program
-    from foldfab.stream import StreamResult, StreamStopped
+    from foldfab.stream import PenPosition, StreamResult, StreamStopped
 
 STATE_VERSION = 1
 _TOKEN = re.compile(r"[0-9a-f]{6,32}")
@@ -174,6 +183,80 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
                    tuple(pauses))
 
 
+def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke], stroke: int,
+                  pen: PenPosition, limit: int) -> int | None:
+    """The first stroke not drawn, if the plotter ran ``program`` up to where its pen is now.
+
+    The plotter executed a prefix of the program that covers every stroke before
+    ``stroke`` (of ``strokes``, the program's) and ends before byte ``limit``.  Of the states the program leaves the pen
+    in (after each coordinate pair, pen up or down), the earliest one at ``pen`` within
+    that range is taken: the true one is among them, so the answer never lies beyond
+    it and no stroke is skipped.  None if no state matches (the plotter did not run this
+    program: its position says nothing).
+    """
+    from foldfab.interpret import HPGLMachine, HPGLTokenizer
+
+    start = strokes[stroke - 1].end if stroke > 0 else 0
+    machine = HPGLMachine(device, device.frame(device.sheet), None)
+    tokenizer = HPGLTokenizer(split_coordinates=True)
+    text = program.text.encode("ascii")
+    commands = tokenizer.feed(text) + tokenizer.close()
+    ends = [c.offset for c in commands[1:]] + [len(text)]
+    for command, end in zip(commands, ends):
+        if end > limit:
+            return None
+        machine.at = command.offset
+        machine.execute(command)
+        if end < start:
+            continue
+        down = machine.stroke is not None
+        if down != pen.down or (round(machine.position[0]), round(machine.position[1])) != (pen.x, pen.y):
+            continue
+        done = len(machine.result.strokes)  # strokes lifted so far
+        if down and done < len(strokes) and len(machine.stroke) == len(strokes[done].points):
+            done += 1  # at the last point of the stroke being drawn: it is complete
+        return max(done, stroke)
+    return None
+
+
+def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: int,
+                  pauses_done: int, **settings) -> tuple[int, str]:
+    """Where to resume: ``stroke`` (the first not acknowledged), moved on past the strokes
+    the plotter drew after its host lost it, as far as asking the plotter can tell
+    (:func:`foldfab.stream.locate_pen`, :func:`first_undrawn`).  Returns the stroke and
+    a note saying how it was found.  ``settings`` are :func:`foldfab.transport.open_port`'s."""
+    from foldfab.interpret import interpret
+    from foldfab.stream import CHECK_EVERY, locate_pen
+    from foldfab.transport import open_port
+
+    if device.protocol != "hpgl":
+        return stroke, ""
+    try:
+        link = open_port(port, device, **settings)
+        try:
+            pen = locate_pen(link, device)
+        finally:
+            link.close()
+    except (FoldfabError, OSError) as exc:
+        return stroke, f"could not ask the plotter where it stopped ({exc})"
+    if pen is None:
+        return stroke, "the plotter was initialized since it stopped, so its position says nothing"
+    strokes = interpret(program, device).strokes
+    if stroke >= len(strokes):
+        return stroke, ""
+    # What the engine can have sent beyond its last acknowledgement (and the queue's last save),
+    # never past a pause the operator has not confirmed (the engine stops sending there).
+    limit = strokes[stroke].offset + 4 * max(device.buffer.size, CHECK_EVERY)
+    unconfirmed = [p.offset for p in program.pauses][pauses_done:]
+    if unconfirmed:
+        limit = min(limit, unconfirmed[0])
+    found = first_undrawn(program, device, strokes, stroke, pen, limit)
+    if found is None:
+        return stroke, (f"the pen is at {pen.x},{pen.y}, where this job does not leave it, so its "
+                        "position says nothing")
+    return found, f"the plotter had drawn {found - stroke} more stroke(s) after the last acknowledgement"
+
+
 def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
     """Commands restoring the tool state ``program`` has set by byte ``offset``."""
     text = program.text[:offset]
@@ -246,18 +329,28 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
 
     state = load_state(resume) if resume else None
     strokes = interpret(program, device).strokes
-    first, sending, pending = 0, program, 0
+    first, sending, pending, note = 0, program, 0, ""
+    settings = dict(baudrate=baudrate, xonxoff=xonxoff, rtscts=rtscts)
     if state is not None:
         check_state(state, program, job, device)
-        first = state.stroke
+        first, found = locate_resume(program, device, port, state.stroke, state.pauses_done, **settings)
+        if first >= len(strokes):  # the plotter drew the rest after its host lost it
+            from foldfab.stream import StreamResult
+
+            if events is not None:
+                end = len(program.text)
+                events(JobProgress(program, device).event("done", end, end, 0.0, message=found))
+            state.path.unlink(missing_ok=True)
+            return StreamResult(0, 0.0, 0.0, 0)
+        note = f"resuming at stroke {first + 1} of {len(strokes)}" + (f": {found}" if found else "")
         sending = resume_program(program, device, first, state.pauses_done)
         cut = strokes[first].offset
         pending = sum(p.offset <= cut for p in program.pauses) - state.pauses_done
     progress = JobProgress(sending, device)
-    link = open_port(port, device, baudrate=baudrate, xonxoff=xonxoff, rtscts=rtscts)
+    link = open_port(port, device, **settings)
     try:
         result = stream(link, sending, device, events=events, cancel=cancel, operator=operator,
-                        stall_timeout=stall_timeout, progress=progress)
+                        stall_timeout=stall_timeout, progress=progress, note=note)
     except StreamStopped as stop:
         stroke = first + progress.strokes_done(stop.acknowledged)
         answered = stop.pauses_done

@@ -196,7 +196,8 @@ class _Fault(Exception):
 def stream(port, program: Program, device: DeviceProfile, *,
            events: Callable[[ProgressEvent], None] | None = None,
            cancel: threading.Event | None = None, operator: Operator | None = None,
-           stall_timeout: float = 30.0, progress: JobProgress | None = None) -> StreamResult:
+           stall_timeout: float = 30.0, progress: JobProgress | None = None,
+           note: str = "") -> StreamResult:
     """Send ``program`` to the plotter on ``port`` (open, with the profile's settings).
 
     ``events`` receives :class:`~foldfab.progress.ProgressEvent` objects; setting
@@ -209,7 +210,37 @@ def stream(port, program: Program, device: DeviceProfile, *,
     if program.protocol != device.protocol:
         raise FoldfabError(f"a {program.protocol} program cannot run on {device.name} ({device.protocol})")
     sender = _GrblSender if device.protocol == "gcode" else _HPGLSender
-    return sender(port, program, device, events, cancel, operator, stall_timeout, progress).run()
+    return sender(port, program, device, events, cancel, operator, stall_timeout, progress).run(note)
+
+
+@dataclass(frozen=True)
+class PenPosition:
+    """Where an HP-GL plotter's pen is, in plotter units, and whether it is down."""
+
+    x: int
+    y: int
+    down: bool
+
+
+def locate_pen(port, device: DeviceProfile, timeout: float = 10.0) -> PenPosition | None:
+    """Ask an HP-GL plotter where its pen stopped after a job lost its host.
+
+    ``ESC.K`` (abort graphics) first discards what the plotter still holds from the lost
+    connection, including an instruction a pulled cable cut in two, which would
+    otherwise run together with the next one; ``OI`` waits for the move in progress and
+    skips answers meant for the lost host; ``OS`` says whether the plotter was
+    initialized since (switched off and on, or another program's ``IN``: its position
+    then says nothing about the job, and None is returned; the engine reads ``OS`` at its
+    first checkpoint, which clears the job's own ``IN``); ``OA`` gives the pen.
+    G-code devices give None: a GRBL board resets when its port opens.
+    """
+    if device.protocol != "hpgl":
+        return None
+    from foldfab.program import Program
+
+    sender = _HPGLSender(port, Program("", "hpgl", device.name, (), ()), device, None, None,
+                         None, timeout, None)
+    return sender.locate()
 
 
 def char_time(port) -> float:
@@ -245,12 +276,12 @@ class _Sender:
         self.inbox = bytearray()
         self.stopping = False
 
-    def run(self) -> StreamResult:
+    def run(self, note: str = "") -> StreamResult:
         timeout = self.port.timeout
         self.port.timeout = POLL
         try:
             try:
-                self.emit("start")
+                self.emit("start", note)
                 self.send_program()
             except KeyboardInterrupt:
                 self.stop("stopped by Ctrl-C", cancelled=True)
@@ -495,7 +526,7 @@ class _HPGLSender(_Sender):
         """Ask ``ESC.B`` until the plotter reports at least ``need`` bytes free."""
         best, since = -1, time.monotonic()
         while self.credit < need:
-            self.credit = self.ask(b"\x1b.B", "ESC.B (free buffer space)", self.stall_timeout)
+            self.credit = self.ask(b"\x1b.B", "ESC.B (free buffer space)", self.stall_timeout)[0]
             self.capacity = max(self.capacity, self.credit)
             self.acked = max(self.acked, self.sent - (self.capacity - self.credit))
             if self.credit >= need:
@@ -526,19 +557,20 @@ class _HPGLSender(_Sender):
             data = data.replace(bytes([XON]), b"").replace(bytes([XOFF]), b"")
         return data
 
-    def ask(self, command: bytes, what: str, timeout: float) -> int:
-        """Send an output instruction; return its decimal answer."""
+    def ask(self, command: bytes, what: str, timeout: float, count: int = 1) -> list[int]:
+        """Send an output instruction; return the first ``count`` integers of its answer."""
         if self.unsure:
             self.resync(timeout)
         self.write(command)
         self.unsure = True  # until its answer is read: a stop may abandon the question
         line = self.answer(command, what, timeout)
         self.unsure = False
-        number = line.split(",")[0].strip()
-        if not number.isdigit():
-            raise _Fault(f"{self.device.name} answered {what} with {line!r}, not a number "
+        numbers = [n.strip() for n in line.split(",")][:count]
+        if len(numbers) < count or not all(re.fullmatch(r"-?\d+", n) for n in numbers):
+            raise _Fault(f"{self.device.name} answered {what} with {line!r}, not "
+                         f"{'a number' if count == 1 else f'{count} numbers'} "
                          "(line noise, or other serial settings?)")
-        return int(number)
+        return [int(n) for n in numbers]
 
     def answer(self, command: bytes, what: str, timeout: float) -> str:
         """The next reply line; a question without one makes the replies unsure."""
@@ -565,6 +597,23 @@ class _HPGLSender(_Sender):
                 self.identities -= 1
         self.unsure = False
 
+    def locate(self) -> PenPosition | None:
+        """See :func:`locate_pen`."""
+        timeout = self.port.timeout
+        self.port.timeout = POLL
+        try:
+            self.write(b"\x1b.K")
+            self.unsure = True  # the lost host's questions may still be answered
+            status = self.ask(b"OS;", "OS (status)", self.stall_timeout)[0]
+            if status & 8:
+                return None
+            x, y, down = self.ask(b"OA;", "OA (actual pen position)", self.stall_timeout, count=3)
+            return PenPosition(x, y, bool(down))
+        except _Fault as exc:
+            raise FoldfabError(str(exc)) from None
+        finally:
+            self.port.timeout = timeout
+
     def checkpoint(self) -> None:
         """Wait until the plotter has executed everything sent and check its error register."""
         if self.sent == self.checked and self.sent:
@@ -573,7 +622,9 @@ class _HPGLSender(_Sender):
             self.escb_room(self.capacity)
         elif self.flow != "none":
             self.room(3)
-        error = self.ask(b"OE;", "OE (output error)", self.patience(self.checked, self.sent))
+        if not self.checked:  # the first checkpoint: reading OS clears "initialized" (see locate_pen)
+            self.ask(b"OS;", "OS (status)", self.patience(self.checked, self.sent))
+        error = self.ask(b"OE;", "OE (output error)", self.patience(self.checked, self.sent))[0]
         self.credit = self.capacity  # the buffer is empty now
         if error:
             meaning = HPGL_ERRORS.get(error, "unknown error")
@@ -595,7 +646,7 @@ class _HPGLSender(_Sender):
                 self.room(3)
         finally:  # a plotter that does not answer still gets the PU; to execute when it can
             self.write(b"PU;")
-        error = self.ask(b"OE;", "OE (output error)", self.patience(self.acked, self.sent))
+        error = self.ask(b"OE;", "OE (output error)", self.patience(self.acked, self.sent))[0]
         if error:  # somewhere since the last checkpoint: those bytes count as not executed
             self.acked = self.checked
             meaning = HPGL_ERRORS.get(error, "unknown error")

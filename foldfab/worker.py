@@ -9,10 +9,11 @@ picks up cancel requests (the engine then stops the plotter safely) and notices 
 the job is no longer this worker's (the plotter is stopped at once).
 
 A job that was interrupted before (its worker died, the cable was pulled) is resumed
-with :func:`foldfab.resume.resume_program` from the first stroke not acknowledged: no
-stroke is lost.  Drawn twice are the interrupted stroke and, when a worker died, the
-strokes the plotter still had in its buffer (it draws them, but nobody saw them
-acknowledged): better twice than lost.  Pauses (the flip of a
+with :func:`foldfab.resume.resume_program` from the first stroke not drawn: the first
+not acknowledged, moved on past those an HP-GL plotter says it drew after its worker
+lost it (:func:`foldfab.resume.locate_resume`).  No stroke is lost; drawn twice is the
+interrupted stroke (on GRBL, whose board resets when the port opens, also the lines it
+still held when the worker died: better twice than lost).  Pauses (the flip of a
 two-sided job) set the job ``waiting``; the :class:`WorkerUI` may answer on a terminal,
 and ``foldfab queue continue ID`` answers from anywhere.
 
@@ -92,6 +93,10 @@ def _discard_stale_replies(link, quiet: float = 0.1, limit: float = 5.0) -> None
         link.reset_input_buffer()
 
 
+Locator = Callable[[int], "tuple[int, str]"]
+"""Given the first stroke not acknowledged, the first stroke not drawn and how it was found."""
+
+
 class WorkerUI(Protocol):
     """What the worker shows and asks; the command line implements it on a terminal."""
 
@@ -163,8 +168,10 @@ class StartPoint:
         return self.cut + max(offset - self.prelude, 0)
 
 
-def start_point(program: Program, device: DeviceProfile, acked: int, pauses_done: int) -> StartPoint:
-    """Where a job starts: from the beginning, or from the first stroke not acknowledged."""
+def start_point(program: Program, device: DeviceProfile, acked: int, pauses_done: int,
+                locate: Locator | None = None) -> StartPoint:
+    """Where a job starts: from the beginning, or from the first stroke not acknowledged,
+    moved on by ``locate`` (``(stroke) -> (stroke, note)``: what the plotter drew since)."""
     if not acked:
         return StartPoint(program, "started", tuple(range(1, len(program.pauses) + 1)))
     from foldfab.interpret import interpret
@@ -172,14 +179,19 @@ def start_point(program: Program, device: DeviceProfile, acked: int, pauses_done
 
     strokes = interpret(program, device).strokes
     stroke = bisect.bisect_right([s.end for s in strokes], acked)
+    found = ""
+    if locate is not None and stroke < len(strokes):
+        stroke, found = locate(stroke)
+    found = f"; {found}" if found else ""
     if stroke >= len(strokes):
-        return StartPoint(None, f"all {len(strokes)} strokes were drawn before the interruption", (), stroke=stroke)
+        return StartPoint(None, f"all {len(strokes)} strokes were drawn before the interruption{found}", (),
+                          stroke=stroke)
     resumed = resume_program(program, device, stroke, pauses_done)
     cut = strokes[stroke].offset
     prelude = len(resumed.text) - (len(program.text) - cut)
     originals = [p.offset for p in program.pauses]
     counts = tuple(bisect.bisect_right(originals, cut + max(p.offset - prelude, 0)) for p in resumed.pauses)
-    return StartPoint(resumed, f"resumed at stroke {stroke + 1} of {len(strokes)} (byte {cut})", counts,
+    return StartPoint(resumed, f"resumed at stroke {stroke + 1} of {len(strokes)} (byte {cut}){found}", counts,
                       cut, prelude, stroke)
 
 
@@ -240,10 +252,13 @@ class Worker:
     """Runs queued jobs on their plotters (see the module docstring)."""
 
     def __init__(self, store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOptions(),
-                 runner: Runner = stream_runner):
+                 runner: Runner = stream_runner, locate: bool = True):
+        """``locate``: before resuming a job, ask its plotter how far it got
+        (:func:`foldfab.resume.locate_resume`)."""
         if options.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
         self.store, self.ui, self.options, self.runner = store, ui, options, runner
+        self.locate = locate
         self.id = WorkerId.current()
         self.interrupted: dict[int, float] = {}  # jobs this worker saw interrupted, and when
         self.stopping = threading.Event()
@@ -284,7 +299,14 @@ class Worker:
         heartbeat = _Heartbeat(self.store, self.id, job.id, self.options, cancel)
         try:
             device = load_snapshot_device(claim.snapshot)
-            start = start_point(claim.snapshot.program, device, job.acked_bytes, job.pauses_done)
+            program = claim.snapshot.program
+            locate = None
+            if self.locate:
+                from foldfab.resume import locate_resume
+
+                def locate(stroke: int) -> tuple[int, str]:
+                    return locate_resume(program, device, job.port, stroke, job.pauses_done)
+            start = start_point(program, device, job.acked_bytes, job.pauses_done, locate)
         except FoldfabError as exc:
             return self._end(job, heartbeat, "failed", f"cannot start: {exc}")
         self.ui.job_started(job, start.note)

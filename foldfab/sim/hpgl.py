@@ -13,7 +13,8 @@ on arrival and never buffered, as on HP plotters.
 
 Answers (each ends in CR): ``ESC.B`` free bytes, ``ESC.L`` buffer size, ``ESC.E`` the
 I/O error (0; 16 after bytes were lost to an overrun; 11 for an unknown ``ESC.``
-instruction), ``ESC.O`` extended status (8 while the buffer is empty and the pen at
+instruction), ``ESC.K`` discards the instruction being read and the buffer (abort graphics;
+the move in progress ends), ``ESC.O`` extended status (8 while the buffer is empty and the pen at
 rest, else 0), ``ESC.A`` the profile's model; ``OI`` the same, ``OS`` status bits (1 pen down, 8
 initialized, cleared by reading, 16 ready, 32 error), ``OE`` the HP-GL error (0 none,
 1 instruction not recognized, 2 wrong parameters; cleared by reading), ``OA`` the pen
@@ -146,6 +147,11 @@ class HPGLPlotter(Simulator):
         elif name == "ESC.E":
             self.reply(str(self.io_error))
             self.io_error = 0
+        elif name == "ESC.K":
+            self.tokenizer.abort()
+            self.commands.clear()
+            self.skipping = False
+            self._free(self.tokenizer.offset)
         elif name == "ESC.O":
             self.reply("8" if not self.rx and not self.planner else "0")
         elif name not in ACCEPTED_DEVICE_CONTROL:

@@ -25,6 +25,10 @@ Every option, its type and meaning (the fault options describe what a test provo
 ``stall``              seconds the device stops consuming and answering, once
 ``stall_at``           received byte count that starts the stall (default: four buffers)
 ``mute``               1: the device never answers: no banner, replies, XON; CTS low
+``session``            ``sim://`` only: ports opened with the same session name in one
+                       process share one plotter, as when a cable is unplugged and plugged
+                       back in (the first open creates it; later opens ignore the other
+                       options)
 =====================  ================================================================
 """
 
@@ -59,6 +63,7 @@ class SimOptions:
     stall: float = 0.0
     stall_at: int | None = None
     mute: bool = False
+    session: str | None = None
 
     def as_dict(self) -> dict:
         """The options that differ from the defaults, for reports."""
@@ -112,6 +117,8 @@ _PARSERS = {
     "stall": ("seconds >= 0", _seconds),
     "stall_at": ("a byte count", _count(0)),
     "mute": ("0 or 1", _flag),
+    "session": ("a name of letters, digits, '.', '_' or '-'",
+                lambda t: t if re.fullmatch(r"[\w.-]+", t) else None),
 }
 
 

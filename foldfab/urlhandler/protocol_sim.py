@@ -4,7 +4,9 @@
 the options are :mod:`foldfab.sim.options`.  The simulator is ``port.simulator``
 (strokes, stats, write_svg, to_json, device).  Assign a profile to ``port.profile``
 before ``open()`` to simulate it under ``sim://`` with no name, or an existing
-simulator to ``port.simulator`` to plug the cable back into the same device.
+simulator to ``port.simulator`` to plug the cable back into the same device; the
+``session=NAME`` option does the same by name (every open with that session in this
+process reaches the plotter the first one created).
 
 The port's settings act as a host driver's would: ``baudrate``, ``bytesize``,
 ``parity`` and ``stopbits`` set the wire time; with ``xonxoff`` the driver stops
@@ -36,6 +38,9 @@ if TYPE_CHECKING:
 
 POLL_STEP = 0.01
 """Virtual seconds an empty poll lets pass in ``instant`` time."""
+_SESSIONS: dict[str, Simulator] = {}
+"""Simulators by ``session`` option: a later open plugs into the same plotter."""
+_SESSIONS_LOCK = threading.Lock()
 WALL_STEP = 0.002
 """Longest wall-clock sleep of a blocking call in real and fast time, so that a reply
 caused by another thread's write is seen at once (ports are shared by a reader and a
@@ -82,9 +87,14 @@ class Serial(SerialBase):
         if not name and self.profile is None:
             raise FoldfabError(f"{url}: no device: name one (sim://grbl) or open it with a "
                                "device profile (foldfab.transport.open_port)")
-        device = load_device(name) if name else self.profile
         options = parse_options(parse_qsl(parts.query, keep_blank_values=True), url)
-        return create_simulator(device, options)
+        with _SESSIONS_LOCK:
+            if options.session in _SESSIONS:
+                return _SESSIONS[options.session]
+            simulator = create_simulator(load_device(name) if name else self.profile, options)
+            if options.session is not None:
+                _SESSIONS[options.session] = simulator
+            return simulator
 
     def close(self) -> None:
         self.is_open = False
