@@ -21,7 +21,7 @@ from foldfab.estimate import estimate
 from foldfab.fabrication import build_plan, fabricate, parse_fabrication, park_position
 from foldfab.interpret import interpret
 from foldfab.optimize import travel
-from foldfab.plan import Pass, PlotPlan
+from foldfab.plan import PlotPlan
 
 ROOT = Path(__file__).resolve().parent.parent
 JOBS = ["hexagon-fig8a", "diamond-fig9", "vase-svg", "star", "open-wave-fig11f", "helix-fig12"]

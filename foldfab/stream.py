@@ -225,8 +225,8 @@ class PenPosition:
 def locate_pen(port, device: DeviceProfile, timeout: float = 10.0) -> PenPosition | None:
     """Ask an HP-GL plotter where its pen stopped after a job lost its host.
 
-    ``ESC.K`` (abort graphics) first discards what the plotter still holds from the lost
-    connection, including an instruction a pulled cable cut in two, which would
+    ``ESC.K`` (abort graphics), sent twice, first discards what the plotter still holds from
+    the lost connection, including an instruction a pulled cable cut in two, which would
     otherwise run together with the next one; ``OI`` waits for the move in progress and
     skips answers meant for the lost host; ``OS`` says whether the plotter was
     initialized since (switched off and on, or another program's ``IN``: its position
@@ -602,7 +602,9 @@ class _HPGLSender(_Sender):
         timeout = self.port.timeout
         self.port.timeout = POLL
         try:
-            self.write(b"\x1b.K")
+            # twice: the lost host may have been cut off inside an ESC. sequence, which then
+            # swallows the first ESC (the stray ".K" is discarded by the second ESC.K)
+            self.write(b"\x1b.K\x1b.K")
             self.unsure = True  # the lost host's questions may still be answered
             status = self.ask(b"OS;", "OS (status)", self.stall_timeout)[0]
             if status & 8:

@@ -33,6 +33,7 @@ import bisect
 import threading
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING, Callable, Protocol
 
 from foldfab.errors import FoldfabError
@@ -300,13 +301,11 @@ class Worker:
         try:
             device = load_snapshot_device(claim.snapshot)
             program = claim.snapshot.program
-            locate = None
-            if self.locate:
-                from foldfab.resume import locate_resume
+            from foldfab.resume import locate_resume
 
-                def locate(stroke: int) -> tuple[int, str]:
-                    return locate_resume(program, device, job.port, stroke, job.pauses_done)
-            start = start_point(program, device, job.acked_bytes, job.pauses_done, locate)
+            locate = partial(locate_resume, program, device, job.port, pauses_done=job.pauses_done)
+            start = start_point(program, device, job.acked_bytes, job.pauses_done,
+                                locate if self.locate else None)
         except FoldfabError as exc:
             return self._end(job, heartbeat, "failed", f"cannot start: {exc}")
         self.ui.job_started(job, start.note)

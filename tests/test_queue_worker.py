@@ -373,13 +373,12 @@ def test_worker_killed_mid_job_is_resumed_by_the_next_run(tmp_path):
         first.wait()
         job = store.jobs()[0]  # no lease to wait for: the worker's process is gone
         assert job.state == "interrupted" and 0 < job.acked_bytes < total
-        resumed_at = job.acked_bytes
-        # The plotter still draws what the dead worker left in its buffer, then answers that worker's
-        # last OE; the engine would take a late answer for its own, so give the plotter time to finish.
-        time.sleep(2.0)
+        # At once, while the plotter still draws what the dead worker left in its buffer: the next run
+        # discards the rest (ESC.K), asks where the pen stopped and goes on from there.
         second = foldfab("queue", "run", "--queue", str(queue), check=False)
         assert second.returncode == 0, foldfab("queue", "show", "1", "--queue", str(queue)).stdout
         assert "resumed at stroke" in second.stdout and "job 1 done" in second.stdout
+        assert "more stroke(s) after the last acknowledgement" in second.stdout, second.stdout
     finally:
         sim.send_signal(signal.SIGINT)
         sim.communicate(timeout=30)
@@ -387,13 +386,10 @@ def test_worker_killed_mid_job_is_resumed_by_the_next_run(tmp_path):
     expected = sheet_strokes(s.points for s in strokes)
     drawn = sheet_strokes(s["points"] for s in json.loads(record.read_text())["strokes"])
     assert not expected - drawn, "a stroke was lost"
-    # Drawn twice: the interrupted stroke, and those the plotter still had in its buffer when the
-    # worker died (it draws them; the worker had not seen them acknowledged), nothing else.
-    first = next(i for i, s in enumerate(strokes) if s.end > resumed_at)
-    window = [s for s in strokes[first:] if s.offset < strokes[first].end + BUFFER]
+    # Drawn twice: at most the stroke the plotter was drawing when the next run stopped it (the
+    # hexagon's stop states here are unambiguous; test_locate covers the general case).
     twice = drawn - expected
-    assert set(twice) <= set(sheet_strokes(s.points for s in window)), f"drawn twice: {twice}"
-    assert sum(twice.values()) <= len(window) <= 4
+    assert sum(twice.values()) <= 1, f"drawn twice: {twice}"
     kinds = [e.kind for e in store.events(1)]
     assert kinds == ["queued", "started", "interrupted", "started", "done"]
 

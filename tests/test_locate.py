@@ -1,0 +1,164 @@
+"""Resuming where the plotter really stopped: an HP-GL plotter whose host was lost goes on
+drawing what it holds; before resuming foldfab asks where its pen is.
+
+The invariant: the stroke foldfab resumes at is never beyond the first stroke not drawn
+(no stroke lost), and is exactly that stroke when the pen's stop state (position and pen
+up or down) occurs once in the part of the program the plotter may have run; then only
+the interrupted stroke is drawn twice.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from foldfab.devices import load_device
+from foldfab.interpret import HPGLMachine, HPGLTokenizer
+from foldfab.progress import JobProgress
+from foldfab.resume import first_undrawn, locate_resume, resume_program
+from foldfab.stream import PenPosition, StreamStopped, locate_pen, stream
+from foldfab.transport import open_port
+from test_resume import FLOWS, job_for, leading_matches
+from test_stream import FAST_BAUD, JOBS, ROOT, fabricated, strokes_of
+from test_stream import xonxoff_device  # noqa: F401  (a fixture)
+
+HPGL_FLOWS = ["escb", "rtscts", "none", "xonxoff"]
+
+
+def same_points(got, want) -> bool:
+    return len(got) == len(want) and all(
+        a.points.shape == b.points.shape and np.allclose(a.points, b.points) for a, b in zip(got, want))
+_session = itertools.count()
+
+
+def states(program, device):
+    """After each coordinate pair or instruction: (end offset, (x, y, pen down), strokes drawn).
+
+    Computed independently of :func:`first_undrawn`: a stroke counts as drawn once the
+    machine has lifted it or stands on its last point."""
+    strokes = strokes_of(program, device)
+    tokenizer = HPGLTokenizer(split_coordinates=True)
+    commands = tokenizer.feed(program.encode()) + tokenizer.close()
+    machine = HPGLMachine(device, device.frame((297.0, 420.0)), None)
+    out = []
+    for command, end in zip(commands, [c.offset for c in commands[1:]] + [len(program.text)]):
+        machine.execute(command)
+        x, y = machine.position
+        lifted = len(machine.result.strokes)
+        drawn = lifted + bool(machine.stroke is not None and lifted < len(strokes)
+                              and len(machine.stroke) == len(strokes[lifted].points)
+                              and np.allclose(machine.frame.to_sheet(machine.stroke), strokes[lifted].points))
+        out.append((end, (round(x), round(y), machine.stroke is not None), drawn))
+    return out
+
+
+def unique_stop(table, start_stroke: int, stop: int) -> bool:
+    """Does the state at index ``stop`` occur only once from where ``start_stroke`` may begin?"""
+    first = next(i for i, (_, _, drawn) in enumerate(table) if drawn >= start_stroke)
+    return [state for _, state, _ in table[max(first - 1, 0):stop + 1]].count(table[stop][1]) == 1
+
+
+@settings(max_examples=60, deadline=None)
+@given(data=st.data(), job=st.sampled_from([j for j in JOBS if j.stem != "vase-svg"]),
+       name=st.sampled_from(["hp7475a", "graphtec-ce6000", "roland-gx24"]))
+def test_first_undrawn_never_skips_a_stroke_and_is_exact_when_the_stop_is_unambiguous(data, job, name):
+    device = load_device(name)
+    program = fabricated(str(job), name).program
+    strokes = strokes_of(program, device)
+    table = states(program, device)
+    stop = data.draw(st.integers(0, len(table) - 1), label="stop")
+    end, (x, y, down), drawn = table[stop]
+    if drawn >= len(strokes):
+        return
+    acked = data.draw(st.integers(0, drawn), label="acknowledged stroke")
+    found = first_undrawn(program, device, strokes, acked, PenPosition(x, y, down), len(program.text))
+    assert found is not None and acked <= found <= drawn
+    if unique_stop(table, acked, stop):
+        assert found == drawn
+    # a limit before the stop hides it: the answer is an earlier state or none, never beyond
+    hidden = first_undrawn(program, device, strokes, acked, PenPosition(x, y, down), end - 1)
+    assert hidden is None or hidden <= drawn
+
+
+def test_a_position_the_program_never_reaches_says_nothing():
+    device = load_device("hp7475a")
+    program = fabricated(str(ROOT / "jobs/star.toml"), "hp7475a").program
+    strokes = strokes_of(program, device)
+    assert first_undrawn(program, device, strokes, 3, PenPosition(-777, 12345, True), len(program.text)) is None
+
+
+def replug(device, fab, cut: int, drain: bool):
+    """Stream until the cable is pulled after ``cut`` bytes; optionally let the plotter draw what
+    it holds; plug the cable back in, locate the pen and resume.  Returns the acknowledged
+    stroke, the located one, the plotter, its state when located (x, y, pen down) and the note."""
+    session = f"replug{next(_session)}"
+    url = f"sim://?time=instant&sheet=A3&session={session}"
+    port = open_port(f"{url}&disconnect_after={cut}", device, baudrate=FAST_BAUD)
+    with pytest.raises(StreamStopped) as stopped:
+        stream(port, fab.program, device)
+    plotter = port.simulator
+    if drain:
+        plotter.run_until_idle()
+    acked = JobProgress(fab.program, device).strokes_done(stopped.value.acknowledged)
+    located, note = locate_resume(fab.program, device, url, acked, 0, baudrate=FAST_BAUD)
+    x, y = plotter.machine.position
+    stop = (round(x), round(y), plotter.machine.stroke is not None)
+    again = open_port(url, device, baudrate=FAST_BAUD)
+    assert again.simulator is plotter
+    stream(again, resume_program(fab.program, device, located, 0), device)
+    return acked, located, plotter, stop, note
+
+
+@pytest.mark.parametrize("drain", [False, True], ids=["replugged-at-once", "replugged-after-it-stopped"])
+@pytest.mark.parametrize("flow", HPGL_FLOWS)
+def test_a_replugged_plotter_resumes_at_the_first_stroke_it_did_not_draw(flow, drain, xonxoff_device):
+    device, fab = job_for(FLOWS[flow], xonxoff_device)
+    want = strokes_of(fab.program, device)
+    table = states(fab.program, device)
+    for cut in (1500, 3001, 4444):
+        acked, located, plotter, stop, note = replug(device, fab, cut, drain)
+        drawn = plotter.strokes
+        first_run = drawn[:len(drawn) - (len(want) - located)]
+        assert same_points(drawn[len(first_run):], want[located:])  # the resume draws exactly the rest
+        complete = leading_matches(first_run, want)
+        assert len(first_run) - complete <= 1, "the first run drew a stroke that is not the program's"
+        if len(first_run) > complete:  # the interrupted stroke: the start of the program's
+            part, whole = first_run[-1].points, want[complete].points
+            assert len(part) < len(whole) and np.allclose(part, whole[:len(part)])
+        assert acked <= located <= complete, "a stroke would be lost"
+        index = next(i for i, (_, state, done) in enumerate(table) if state == stop and done == complete)
+        if unique_stop(table, acked, index):
+            assert located == complete, (cut, acked, located, note)  # only the interrupted one again
+        assert "more stroke(s) after the last acknowledgement" in note, note
+
+
+def test_a_plotter_switched_off_and_on_is_not_trusted():
+    """A fresh plotter (initialized, pen at the origin) says nothing about the job: resume at the
+    last acknowledged stroke."""
+    device = load_device("hp7475a")
+    program = fabricated(str(ROOT / "jobs/star.toml"), "hp7475a").program
+    assert locate_resume(program, device, "sim://?time=instant", 5, 0) == \
+        (5, "the plotter was initialized since it stopped, so its position says nothing")
+    port = open_port("sim://?time=instant", device)
+    port.simulator.machine.position = (100.0, 200.0)
+    port.write(b"OS;")  # the engine's first checkpoint reads OS: "initialized" is cleared
+    assert port.read_until(b"\r") == b"24\r"
+    assert locate_pen(port, device) == PenPosition(100, 200, False)
+
+
+def test_gcode_devices_are_not_located():
+    device = load_device("grbl")
+    program = fabricated(str(ROOT / "jobs/star.toml"), "grbl").program
+    assert locate_resume(program, device, "sim://?time=instant", 5, 0) == (5, "")
+    assert locate_pen(open_port("sim://?time=instant", device), device) is None
+
+
+def test_an_unreachable_plotter_leaves_the_acknowledged_stroke():
+    device = load_device("hp7475a")
+    program = fabricated(str(ROOT / "jobs/star.toml"), "hp7475a").program
+    stroke, note = locate_resume(program, device, "/dev/nonexistent-plotter", 4, 0)
+    assert stroke == 4 and note.startswith("could not ask the plotter where it stopped")
