@@ -386,10 +386,11 @@ def test_grbl_soft_reset_in_motion_alarms_and_locks():
     assert port.simulator.stats.alarms == ["ALARM:3"]
     assert g.status().startswith(b"<Alarm|")
     drawn = port.simulator.strokes
-    assert len(drawn) == 1 and len(drawn[0].points) == 2  # the planned Y move was never drawn
-    assert 0 < drawn[0].length <= 50
-    g.send("G0 X0\n$X\nG0 X0\n")
-    assert g.replies[-3:] == [b"error:9", b"ok", b"ok"] and b"[MSG:Caution: Unlocked]" in g.messages
+    assert len(drawn[0].points) == 2 and 0 < drawn[0].length <= 50  # the planned Y move was never drawn
+    assert all(s.length == 0 for s in drawn[1:])
+    assert port.simulator.machine.stroke is not None  # the reset left the tool down: Z did not move
+    g.send("G0 X0\n$X\nG0 Z3\nG0 X0\n")
+    assert g.replies[-4:] == [b"error:9", b"ok", b"ok", b"ok"] and b"[MSG:Caution: Unlocked]" in g.messages
     port.simulator.run_until_idle()
     port.write(b"\x18")  # a reset while idle just greets
     assert port.read_until(b"help]\r\n") == BANNER

@@ -17,7 +17,9 @@
   N (counting every line) answer ``error:<error_code>`` (default 20) unexecuted.
 * A soft reset flushes the buffer, the line and the planner, answers ``ALARM:3`` if
   the machine was moving (position lost; G-code then answers ``error:9`` until
-  ``$X``), and prints the banner (plus ``[MSG:'$H'|'$X' to unlock]`` in alarm).
+  ``$X``), and prints the banner (plus ``[MSG:'$H'|'$X' to unlock]`` in alarm).  The
+  parser restarts with its defaults, but a Z tool stays where it is: down if it was
+  (a servo pen is switched off with the spindle output).
 * ``$X``, ``$``, ``$I``, ``$G`` and ``$$`` answer as GRBL does (settings from the profile).
 * Status: ``<Idle|MPos:x,y,z|FS:feed,spindle>`` with state ``Idle``, ``Run``,
   ``Hold:0`` or ``Alarm``; the position is interpolated along the current move.
@@ -275,6 +277,9 @@ class GrblController(Simulator):
             self.z = block.z
         self.previous = self.strokes
         self.machine = self._new_machine((x, y))
+        if not self.machine.servo:  # the Z axis stays where it is: a tool that was down still is
+            self.machine.z = self.z
+            self.machine.pen_state(self.z <= self.machine.down_limit, self.z, self.base + len(self.rx))
         self.position = (x, y)
         if self.hold is not None:
             self.hold.duration = self.t - self.hold.start
