@@ -125,7 +125,7 @@ def build_plan(design: Design, device: DeviceProfile, spec: FabricationSpec | No
         spec = parse_fabrication(design.job.fabrication, str(design.job.path))
     cp = design.crease_pattern
     placement, sheet = place(design, device, spec)
-    creases = {"valley": scoring.crease_segments(cp, "V"), "mountain": scoring.crease_segments(cp, "M")}
+    creases = {"valley": scoring.crease_lines(cp, "V"), "mountain": scoring.crease_lines(cp, "M")}
     lines = {k: [placement.apply(seg) for seg in v] for k, v in creases.items()}
     lines["cut"] = [placement.apply(loop) for loop in scoring.outline_loops(cp)]
     if spec.strategy == "two-sided":

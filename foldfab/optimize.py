@@ -2,8 +2,10 @@
 
 Within each layer: ``linemerge`` (join lines whose ends meet), ``linesort``
 (greedy, or with ``--two-opt``), ``linesimplify`` within the device's resolution,
-and closed outlines relooped to start where the pen arrives.  Layers are never
-reordered.  :func:`travel` measures pen-up travel of a plan the way the plotter
+closed outlines relooped to start where the pen arrives, and of the sorted order
+and its reverse the one that enters and leaves the layer by less travel (its last
+line turned round if it then ends nearer the next layer or the park position).  Layers
+are never reordered.  :func:`travel` measures pen-up travel of a plan the way the plotter
 moves: from the park position, within and between layers (all passes), and back.
 """
 
@@ -33,9 +35,8 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
     sort = "linesort --two-opt" if method == "two-opt" else "linesort"
     doc = plan.document.clone()  # metadata only: layers are added below, in plan order
     pen = start
-    for step in plan.steps:
-        if not isinstance(step, Pass):
-            continue
+    passes = [step for step in plan.steps if isinstance(step, Pass)]
+    for index, step in enumerate(passes):
         lines = plan.document.layers[step.layer_id]
         single = vp.Document()
         single.add(vp.LineCollection(lines.lines), 1)
@@ -43,7 +44,13 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
         simplify = "" if step.name in keep_vertices else f" linesimplify --tolerance {resolution / 2}"
         out = vpype_cli.execute(f"linemerge --tolerance {resolution} {sort}{simplify}", _nearest_first(single, pen))
         result = out.layers.get(1, vp.LineCollection())
-        result = _reloop(result, pen, resolution)
+        later = [plan.document.layers[p.layer_id] for p in passes[index + 1:]]
+        following = next((_entries(layer, resolution) for layer in later if len(layer)), np.array([start]))
+        # The sorted order backwards (each line reversed) has the same inner travel: take the
+        # direction that arrives and leaves by less.
+        candidates = [_end_towards(_reloop(order, pen, resolution), pen, following)
+                      for order in (result, vp.LineCollection([line[::-1] for line in result.lines[::-1]]))]
+        result = min(candidates, key=lambda c: _entry_exit(c, pen, following))
         for name, value in lines.metadata.items():
             result.set_property(name, value)
         doc.add(result, step.layer_id, with_metadata=True)
@@ -63,6 +70,37 @@ def _nearest_first(doc, pen: complex):
         rest = [line for k, line in enumerate(lines.lines) if k != i]
         lines.lines[:] = [first, *rest]
     return doc
+
+
+def _entries(lines, tolerance: float) -> np.ndarray:
+    """Where the pen can begin drawing ``lines``: the ends of open lines, any vertex of a
+    closed one (it is relooped to start there)."""
+    return np.concatenate([line if abs(line[0] - line[-1]) <= tolerance else line[[0, -1]]
+                           for line in lines])
+
+
+def _entry_exit(lines, pen: complex, following: np.ndarray) -> float:
+    """Travel from ``pen`` into ``lines`` and from their end on to the nearest of ``following``,
+    plus the travel inside (reloop and the last line's turn change it)."""
+    if not len(lines):
+        return 0.0
+    inside = float(lines.pen_up_length()[0])
+    return abs(lines.lines[0][0] - pen) + inside + float(np.min(np.abs(following - lines.lines[-1][-1])))
+
+
+def _end_towards(lines, pen: complex, following: np.ndarray):
+    """Reverse the layer's last line if the pen then gets there and on to the nearest of
+    ``following`` (the next layer's line ends, or the park position) by less travel."""
+    import vpype as vp
+
+    if not len(lines) or lines.lines[-1][0] == lines.lines[-1][-1]:
+        return lines
+    last = lines.lines[-1]
+    before = lines.lines[-2][-1] if len(lines) > 1 else pen
+    onward = lambda point: float(np.min(np.abs(following - point)))  # noqa: E731
+    if abs(before - last[-1]) + onward(last[0]) < abs(before - last[0]) + onward(last[-1]):
+        return vp.LineCollection([*lines.lines[:-1], last[::-1]])
+    return lines
 
 
 def _reloop(lines, pen: complex, tolerance: float):

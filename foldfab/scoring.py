@@ -12,38 +12,66 @@ import numpy as np
 from foldfab.crease_pattern import CreasePattern
 
 
-def crease_segments(cp: CreasePattern, kind: str) -> np.ndarray:
-    """(S, 2) complex end points of every crease assigned ``kind`` ("M" or "V")."""
-    p = cp.vertices[cp.edges[cp.assignment == kind]]
-    return p[..., 0] + 1j * p[..., 1]
+def crease_lines(cp: CreasePattern, kind: str) -> list[np.ndarray]:
+    """The creases assigned ``kind`` ("M" or "V") chained into polylines (complex arrays).
+
+    Chaining along the crease pattern's own vertex numbering is exact and cheap; vpype's
+    ``linemerge`` then only has the joins between chains left to find.
+    """
+    return _chains(cp, cp.edges[cp.assignment == kind])
 
 
 def outline_loops(cp: CreasePattern) -> list[np.ndarray]:
     """The border edges chained into closed loops (first point repeated at the end), as complex arrays."""
-    edges = cp.edges[cp.assignment == "B"]
-    neighbours: dict[int, list[int]] = {}
-    for a, b in edges.tolist():
-        neighbours.setdefault(a, []).append(b)
-        neighbours.setdefault(b, []).append(a)
-    loops = []
-    unused = {tuple(sorted(e)) for e in edges.tolist()}
+    return _chains(cp, cp.edges[cp.assignment == "B"])
+
+
+def _chains(cp: CreasePattern, edges: np.ndarray) -> list[np.ndarray]:
+    """``edges`` (E, 2 vertex indices) drawn with as few pen lifts as a graph allows.
+
+    A connected set of edges with ``2k`` vertices of odd degree needs ``k`` strokes (one
+    closed loop if ``k`` is 0), and that many suffice (Euler).  Hierholzer's algorithm
+    finds them: an extra vertex joined to every odd vertex makes every degree even; the
+    Euler circuits of that graph, cut where they pass the extra vertex, are the strokes.
+    Closed loops repeat their first point.  Deterministic (neighbours in index order).
+    """
+    pairs = edges.tolist()
+    odd = np.flatnonzero(np.bincount(edges.ravel(), minlength=len(cp.vertices)) % 2).tolist()
+    extra = len(cp.vertices)
+    pairs += [[v, extra] for v in odd]
+    neighbours: dict[int, list[tuple[int, int]]] = {}
+    for index, (a, b) in enumerate(pairs):
+        neighbours.setdefault(a, []).append((b, index))
+        neighbours.setdefault(b, []).append((a, index))
+    for options in neighbours.values():
+        options.sort()
+    used = [False] * len(pairs)
+    cursor = dict.fromkeys(neighbours, 0)
     points = cp.vertices[:, 0] + 1j * cp.vertices[:, 1]
-    while unused:
-        start = min(unused)[0]
-        loop = [start]
-        prev, cur = None, start
-        while True:
-            options = [n for n in neighbours[cur] if n != prev and tuple(sorted((cur, n))) in unused]
-            if not options:
-                break
-            nxt = min(options)
-            unused.discard(tuple(sorted((cur, nxt))))
-            loop.append(nxt)
-            prev, cur = cur, nxt
-            if cur == start:
-                break
-        loops.append(points[loop])
-    return loops
+    walks: list[list[int]] = []
+    starts = ([extra] if odd else []) + sorted(min(a, b) for a, b in edges.tolist())
+    for start in starts:
+        circuit, stack = [], [start]
+        while stack:  # Hierholzer: extend the walk; at a dead end, emit the vertex and back up
+            v = stack[-1]
+            options, i = neighbours[v], cursor[v]
+            while i < len(options) and used[options[i][1]]:
+                i += 1
+            cursor[v] = i
+            if i < len(options):
+                used[options[i][1]] = True
+                stack.append(options[i][0])
+            else:
+                circuit.append(stack.pop())
+        piece: list[int] = []
+        for v in circuit + [extra]:
+            if v == extra:
+                if len(piece) > 1:
+                    walks.append(piece)
+                piece = []
+            else:
+                piece.append(v)
+    return [points[walk] for walk in walks]
 
 
 def perforate(segments: np.ndarray, pattern: tuple[float, ...], clearance: float) -> np.ndarray:

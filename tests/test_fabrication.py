@@ -12,11 +12,34 @@ from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.fabrication import fabricate, parse_fabrication
 from foldfab.interpret import interpret
-from foldfab.scoring import crease_segments, outline_loops
+from foldfab.scoring import crease_lines, outline_loops
 
 ROOT = Path(__file__).resolve().parent.parent
 JOBS = sorted((ROOT / "jobs").glob("*.toml"))
 DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
+
+
+def crease_segments(cp, kind: str) -> np.ndarray:
+    """The crease pattern's own edges of ``kind`` as (S, 2) complex end points: the oracle."""
+    p = cp.vertices[cp.edges[cp.assignment == kind]]
+    return p[..., 0] + 1j * p[..., 1]
+
+
+@pytest.mark.parametrize("job", sorted((ROOT / "jobs").glob("*.toml")), ids=lambda p: p.stem)
+def test_chained_creases_and_outline_cover_every_edge_once(job):
+    cp = load_design(job).crease_pattern
+
+    def pairs(segments) -> list:
+        return sorted(tuple(sorted([(a.real, a.imag), (b.real, b.imag)])) for a, b in segments)
+    for kind in "MV":
+        lines = crease_lines(cp, kind)
+        walked = [(line[i], line[i + 1]) for line in lines for i in range(len(line) - 1)]
+        assert pairs(walked) == pairs(crease_segments(cp, kind))
+        assert len(lines) <= len(crease_segments(cp, kind))
+    loops = outline_loops(cp)
+    assert all(loop[0] == loop[-1] for loop in loops)
+    walked = [(loop[i], loop[i + 1]) for loop in loops for i in range(len(loop) - 1)]
+    assert pairs(walked) == pairs(crease_segments(cp, "B"))
 
 
 def spec(**kw):
