@@ -71,7 +71,12 @@ def export_times() -> None:
         points = ", ".join(f"[{w * math.sin(x / 60 * 6 * math.pi):.9f}, {x:.9f}]" for x in v)
         big.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = {corners}\n"
                        f"radius = {radius}\n[fabrication]\nsheet = [13000, 100]\nmargin = 5\n")
-        cases = [("paper scale: jobs/vase-svg.toml (320 faces)", [str(ROOT / "jobs" / "vase-svg.toml"), "--device", "graphtec-ce6000"]),
+        paper = Path(tmp) / "paper.toml"  # 41 profile points x 24 corners: 1,000 faces
+        points = ", ".join(f"[{i % 2}, {4 * i}]" for i in range(41))
+        paper.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = 24\n"
+                         "radius = 60\n[fabrication]\nsheet = \"A3\"\nmargin = 5\nscale = 0.5\n")
+        cases = [("paper scale: 1,000 faces from points", [str(paper), "--device", "graphtec-ce6000"]),
+                 ("paper scale: jobs/vase-svg.toml (320 faces)", [str(ROOT / "jobs" / "vase-svg.toml"), "--device", "graphtec-ce6000"]),
                  ("100,000 faces", [str(big), "--device", str(Path(tmp) / "long.toml")])]
         profile = (ROOT / "devices" / "graphtec-ce6000.toml").read_text()
         (Path(tmp) / "long.toml").write_text(profile.replace('name = "graphtec-ce6000"', 'name = "long-roll"')
@@ -89,7 +94,9 @@ def export_times() -> None:
                 start = time.perf_counter()
                 subprocess.run(cli + args + ["-o", str(Path(tmp) / "out.plt")] + extra, check=True, capture_output=True)
                 best = min(best, time.perf_counter() - start)
-            print(f"{label:<45} {best:6.2f} s")
+            faces = subprocess.run([sys.executable, "-m", "foldfab", "design", args[0]], check=True,
+                                   capture_output=True, text=True).stdout.split("faces ")[1].split(",")[0]
+            print(f"{label:<45} {best:6.2f} s   ({faces} faces, {Path(tmp, 'out.plt').stat().st_size:,} bytes)")
 
 
 if __name__ == "__main__":
