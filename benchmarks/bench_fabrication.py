@@ -64,20 +64,17 @@ def export_times() -> None:
     cli = [sys.executable, "-m", "foldfab", "export"]
     print("\nfoldfab export, end to end (best of 3)")
     with tempfile.TemporaryDirectory() as tmp:
-        big = Path(tmp) / "big.toml"
-        corners, radius = 1000, 2000.0
-        w = 0.8 * radius * math.sin(math.pi / corners) * math.tan(math.pi / corners)
-        v = np.linspace(0, 60, 101)
-        points = ", ".join(f"[{w * math.sin(x / 60 * 6 * math.pi):.9f}, {x:.9f}]" for x in v)
-        big.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = {corners}\n"
-                       f"radius = {radius}\n[fabrication]\nsheet = [13000, 100]\nmargin = 5\n")
+        big = Path(tmp) / "big.toml"  # a zigzag profile of 1,001 points x 100 corners: 101,000 faces, 12.6 m
+        points = ", ".join(f"[{0.03 * (i % 2)}, {0.05 * i:.2f}]" for i in range(1001))
+        big.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = 100\n"
+                       "radius = 2000\n[fabrication]\nsheet = [13000, 100]\nmargin = 5\n")
         paper = Path(tmp) / "paper.toml"  # 41 profile points x 24 corners: 1,000 faces
         points = ", ".join(f"[{i % 2}, {4 * i}]" for i in range(41))
         paper.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = 24\n"
                          "radius = 60\n[fabrication]\nsheet = \"A3\"\nmargin = 5\nscale = 0.5\n")
         cases = [("paper scale: 1,000 faces from points", [str(paper), "--device", "graphtec-ce6000"]),
                  ("paper scale: jobs/vase-svg.toml (320 faces)", [str(ROOT / "jobs" / "vase-svg.toml"), "--device", "graphtec-ce6000"]),
-                 ("100,000 faces", [str(big), "--device", str(Path(tmp) / "long.toml")])]
+                 ("101,000 faces, 100,000 strokes", [str(big), "--device", str(Path(tmp) / "long.toml")])]
         profile = (ROOT / "devices" / "graphtec-ce6000.toml").read_text()
         (Path(tmp) / "long.toml").write_text(profile.replace('name = "graphtec-ce6000"', 'name = "long-roll"')
                                              .replace("plottable_area = [1000, 375]", "plottable_area = [375, 13000]"))
