@@ -13,7 +13,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
