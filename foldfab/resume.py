@@ -15,9 +15,9 @@ The acknowledged count lags behind the plotter: a plotter whose host died or who
 cable was pulled goes on drawing what its buffer holds.  Before resuming, an HP-GL
 plotter is therefore asked where its pen is (:func:`locate_resume`): what it still
 holds is discarded, and the strokes it drew after the last acknowledgement are
-skipped (:func:`first_undrawn` never skips one it did not draw).  GRBL boards reset
-when their port opens, which clears their position, so G-code jobs resume at the
-last acknowledged stroke.
+skipped (:func:`first_undrawn` never skips one it did not draw).  A GRBL board that
+resets when its port opens (an Arduino's DTR) has lost its position, so such a job
+resumes at the last acknowledged line.
 
 Resume states are JSON files in ``$XDG_STATE_HOME/foldfab/resume/`` (default
 ``~/.local/state``), one per token, written atomically::
@@ -188,35 +188,52 @@ def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke]
     """The first stroke not drawn, if the plotter ran ``program`` up to where its pen is now.
 
     The plotter executed a prefix of the program that covers every stroke before
-    ``stroke`` (of ``strokes``, the program's) and ends before byte ``limit``.  Of the states the program leaves the pen
-    in (after each coordinate pair, pen up or down), the earliest one at ``pen`` within
-    that range is taken: the true one is among them, so the answer never lies beyond
-    it and no stroke is skipped.  None if no state matches (the plotter did not run this
-    program: its position says nothing).
+    ``stroke`` (of ``strokes``, the program's) and ends before byte ``limit``.  Of the
+    states the program leaves the pen in (after each HP-GL coordinate pair or G-code
+    line, pen up or down), the earliest one at ``pen`` within that range is taken: the
+    true one is among them, so the answer never lies beyond it and no stroke is skipped.
+    None if no state matches (the plotter did not run this program: its position says
+    nothing).
     """
-    from foldfab.interpret import HPGLMachine, HPGLTokenizer
-
     start = strokes[stroke - 1].end if stroke > 0 else 0
-    machine = HPGLMachine(device, device.frame(device.sheet), None)
-    tokenizer = HPGLTokenizer(split_coordinates=True)
-    text = program.text.encode("ascii")
-    commands = tokenizer.feed(text) + tokenizer.close()
-    ends = [c.offset for c in commands[1:]] + [len(text)]
-    for command, end in zip(commands, ends):
+    tolerance = 0.5 if program.protocol == "hpgl" else 0.0015  # a plotter unit; GRBL's 3 decimals
+    for end, machine in _pen_states(program, device):
         if end > limit:
             return None
-        machine.at = command.offset
-        machine.execute(command)
-        if end < start:
-            continue
         down = machine.stroke is not None
-        if down != pen.down or (round(machine.position[0]), round(machine.position[1])) != (pen.x, pen.y):
+        if end < start or down != pen.down or abs(machine.position[0] - pen.x) > tolerance \
+                or abs(machine.position[1] - pen.y) > tolerance:
             continue
         done = len(machine.result.strokes)  # strokes lifted so far
         if down and done < len(strokes) and len(machine.stroke) == len(strokes[done].points):
             done += 1  # at the last point of the stroke being drawn: it is complete
         return max(done, stroke)
     return None
+
+
+def _pen_states(program: Program, device: DeviceProfile):
+    """(end offset, machine) after each step a plotter takes: an HP-GL coordinate pair or
+    instruction, a G-code line.  The machine is the same object, updated in place."""
+    from foldfab.interpret import GcodeMachine, HPGLMachine, HPGLTokenizer
+
+    frame = device.frame(device.sheet)
+    text = program.text
+    if program.protocol == "hpgl":
+        machine = HPGLMachine(device, frame, None)
+        tokenizer = HPGLTokenizer(split_coordinates=True)
+        commands = tokenizer.feed(text.encode("ascii")) + tokenizer.close()
+        for command, end in zip(commands, [c.offset for c in commands[1:]] + [len(text)]):
+            machine.at = command.offset
+            machine.execute(command)
+            yield end, machine
+        return
+    machine = GcodeMachine(device, frame, None)
+    offset = 0
+    for raw in text.split("\n"):
+        end = min(offset + len(raw) + 1, len(text))
+        machine.execute(raw, offset, end)
+        yield end, machine
+        offset = end
 
 
 def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: int,
@@ -229,8 +246,6 @@ def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: in
     from foldfab.stream import CHECK_EVERY, locate_pen
     from foldfab.transport import open_port
 
-    if device.protocol != "hpgl":
-        return stroke, ""
     try:
         link = open_port(port, device, **settings)
         try:
@@ -240,7 +255,8 @@ def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: in
     except (FoldfabError, OSError) as exc:
         return stroke, f"could not ask the plotter where it stopped ({exc})"
     if pen is None:
-        return stroke, "the plotter was initialized since it stopped, so its position says nothing"
+        return stroke, ("the plotter was initialized since it stopped (switched off and on, or "
+                        "reset when its port opened), so its position says nothing")
     strokes = interpret(program, device).strokes
     if stroke >= len(strokes):
         return stroke, ""

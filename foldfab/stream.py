@@ -215,32 +215,36 @@ def stream(port, program: Program, device: DeviceProfile, *,
 
 @dataclass(frozen=True)
 class PenPosition:
-    """Where an HP-GL plotter's pen is, in plotter units, and whether it is down."""
+    """Where a plotter's pen is, in device units (HP-GL plotter units, G-code mm), and
+    whether it is down."""
 
-    x: int
-    y: int
+    x: float
+    y: float
     down: bool
 
 
 def locate_pen(port, device: DeviceProfile, timeout: float = 10.0) -> PenPosition | None:
-    """Ask an HP-GL plotter where its pen stopped after a job lost its host.
+    """Ask a plotter where its pen stopped after a job lost its host; None if it cannot know.
 
-    ``ESC.K`` (abort graphics), sent twice, first discards what the plotter still holds from
-    the lost connection, including an instruction a pulled cable cut in two, which would
-    otherwise run together with the next one; ``OI`` waits for the move in progress and
-    skips answers meant for the lost host; ``OS`` says whether the plotter was
-    initialized since (switched off and on, or another program's ``IN``: its position
-    then says nothing about the job, and None is returned; the engine reads ``OS`` at its
-    first checkpoint, which clears the job's own ``IN``); ``OA`` gives the pen.
-    G-code devices give None: a GRBL board resets when its port opens.
+    HP-GL: ``ESC.K`` (abort graphics), sent twice, first discards what the plotter still
+    holds from the lost connection, including an instruction a pulled cable cut in two,
+    which would otherwise run together with the next one; ``OI`` waits for the move in
+    progress and skips answers meant for the lost host; ``OS`` says whether the plotter
+    was initialized since (switched off and on, or another program's ``IN``: its position
+    then says nothing about the job; the engine reads ``OS`` at its first checkpoint,
+    which clears the job's own ``IN``); ``OA`` gives the pen.
+
+    GRBL: a board that greets on opening has just rebooted (an Arduino's DTR reset) and
+    lost its position: None.  Otherwise, once the status says ``Idle`` (the lines it held
+    are done), a soft reset clears a line the cable cut in two (GRBL keeps its position
+    when reset at rest) and the status report gives the position; a Z tool stays where it
+    was, a servo pen's state is lost with the reset (None).
     """
-    if device.protocol != "hpgl":
-        return None
     from foldfab.program import Program
 
-    sender = _HPGLSender(port, Program("", "hpgl", device.name, (), ()), device, None, None,
-                         None, timeout, None)
-    return sender.locate()
+    empty = Program("", device.protocol, device.name, (), ())
+    sender = _GrblSender if device.protocol == "gcode" else _HPGLSender
+    return sender(port, empty, device, None, None, None, timeout, None).locate()
 
 
 def char_time(port) -> float:
@@ -853,6 +857,40 @@ class _GrblSender(_Sender):
         if self.state == "Alarm":
             raise FoldfabError(f"{self.device.name} is in alarm state: home it ($H) or unlock it "
                                "($X), then plot again")
+
+    def locate(self) -> PenPosition | None:
+        """See :func:`locate_pen`."""
+        timeout = self.port.timeout
+        self.port.timeout = POLL
+        self.stopping = True  # replies to the lost host (ok, error) are not this job's faults
+        try:
+            deadline = time.monotonic() + BANNER_WAIT
+            while time.monotonic() < deadline:
+                self.receive(wait=True)
+                if any(reply.startswith("Grbl ") for reply in self.lines()):
+                    return None  # it rebooted: its position is gone
+            if isinstance(self.device.gcode.pen_up, str):
+                return None
+            self.wait(lambda: self.report is not None and self.report[0] in ("Idle", "Alarm"),
+                      "the end of the lines it held", self.stall_timeout)
+            if self.state == "Alarm":
+                return None  # its position may be lost: it says so
+            self.banner = ""
+            self.write(b"\x18")
+            self.wait(lambda: bool(self.banner), "the soft reset", self.stall_timeout)
+            self.report = None
+            self.wait(lambda: self.report is not None, "a status report", self.stall_timeout)
+            if self.state == "Alarm" or self.machine_position is None:
+                return None
+            from foldfab.interpret import GcodeMachine
+
+            x, y, z = self.work_position()
+            machine = GcodeMachine(self.device, self.device.frame(self.device.sheet), None)
+            return PenPosition(x, y, z <= machine.down_limit)
+        except _Fault as exc:
+            raise FoldfabError(str(exc)) from None
+        finally:
+            self.port.timeout = timeout
 
     def send_program(self) -> None:
         self.connect()

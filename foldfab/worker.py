@@ -10,9 +10,9 @@ the job is no longer this worker's (the plotter is stopped at once).
 
 A job that was interrupted before (its worker died, the cable was pulled) is resumed
 with :func:`foldfab.resume.resume_program` from the first stroke not drawn: the first
-not acknowledged, moved on past those an HP-GL plotter says it drew after its worker
-lost it (:func:`foldfab.resume.locate_resume`).  No stroke is lost; drawn twice is the
-interrupted stroke (on GRBL, whose board resets when the port opens, also the lines it
+not acknowledged, moved on past those the plotter says it drew after its worker lost
+it (:func:`foldfab.resume.locate_resume`).  No stroke is lost; drawn twice is the
+interrupted stroke (on a GRBL board that resets when its port opens, also the lines it
 still held when the worker died: better twice than lost).  Pauses (the flip of a
 two-sided job) set the job ``waiting``; the :class:`WorkerUI` may answer on a terminal,
 and ``foldfab queue continue ID`` answers from anywhere.

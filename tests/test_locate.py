@@ -1,5 +1,5 @@
-"""Resuming where the plotter really stopped: an HP-GL plotter whose host was lost goes on
-drawing what it holds; before resuming foldfab asks where its pen is.
+"""Resuming where the plotter really stopped: a plotter whose host was lost goes on drawing
+what it holds; before resuming foldfab asks where its pen is.
 
 The invariant: the stroke foldfab resumes at is never beyond the first stroke not drawn
 (no stroke lost), and is exactly that stroke when the pen's stop state (position and pen
@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from foldfab.devices import load_device
-from foldfab.interpret import HPGLMachine, HPGLTokenizer
+from foldfab.interpret import GcodeMachine, HPGLMachine, HPGLTokenizer
 from foldfab.progress import JobProgress
 from foldfab.resume import first_undrawn, locate_resume, resume_program
 from foldfab.stream import PenPosition, StreamStopped, locate_pen, stream
@@ -32,27 +32,47 @@ HPGL_FLOWS = ["escb", "rtscts", "none", "xonxoff"]
 def same_points(got, want) -> bool:
     return len(got) == len(want) and all(
         a.points.shape == b.points.shape and np.allclose(a.points, b.points) for a, b in zip(got, want))
+
+
 _session = itertools.count()
 
 
+def steps(program, device):
+    """(end offset, step) for each step a plotter takes: HP-GL coordinate pairs and
+    instructions, G-code lines; and the machine that executes them."""
+    frame = device.frame((297.0, 420.0))
+    if program.protocol == "hpgl":
+        tokenizer = HPGLTokenizer(split_coordinates=True)
+        commands = tokenizer.feed(program.encode()) + tokenizer.close()
+        machine = HPGLMachine(device, frame, None)
+        return machine, [(end, lambda c=c: machine.execute(c)) for c, end in
+                         zip(commands, [c.offset for c in commands[1:]] + [len(program.text)])]
+    machine, out, offset = GcodeMachine(device, frame, None), [], 0
+    for raw in program.text.split("\n"):
+        end = min(offset + len(raw) + 1, len(program.text))
+        out.append((end, lambda raw=raw, o=offset, e=end: machine.execute(raw, o, e)))
+        offset = end
+    return machine, out
+
+
 def states(program, device):
-    """After each coordinate pair or instruction: (end offset, (x, y, pen down), strokes drawn).
+    """After each step: (end offset, (x, y, pen down), strokes drawn), positions rounded to
+    the device's resolution.
 
     Computed independently of :func:`first_undrawn`: a stroke counts as drawn once the
     machine has lifted it or stands on its last point."""
     strokes = strokes_of(program, device)
-    tokenizer = HPGLTokenizer(split_coordinates=True)
-    commands = tokenizer.feed(program.encode()) + tokenizer.close()
-    machine = HPGLMachine(device, device.frame((297.0, 420.0)), None)
+    machine, todo = steps(program, device)
+    digits = 0 if program.protocol == "hpgl" else 3
     out = []
-    for command, end in zip(commands, [c.offset for c in commands[1:]] + [len(program.text)]):
-        machine.execute(command)
+    for end, step in todo:
+        step()
         x, y = machine.position
         lifted = len(machine.result.strokes)
         drawn = lifted + bool(machine.stroke is not None and lifted < len(strokes)
                               and len(machine.stroke) == len(strokes[lifted].points)
                               and np.allclose(machine.frame.to_sheet(machine.stroke), strokes[lifted].points))
-        out.append((end, (round(x), round(y), machine.stroke is not None), drawn))
+        out.append((end, (round(x, digits), round(y, digits), machine.stroke is not None), drawn))
     return out
 
 
@@ -64,7 +84,7 @@ def unique_stop(table, start_stroke: int, stop: int) -> bool:
 
 @settings(max_examples=60, deadline=None)
 @given(data=st.data(), job=st.sampled_from([j for j in JOBS if j.stem != "vase-svg"]),
-       name=st.sampled_from(["hp7475a", "graphtec-ce6000", "roland-gx24"]))
+       name=st.sampled_from(["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]))
 def test_first_undrawn_never_skips_a_stroke_and_is_exact_when_the_stop_is_unambiguous(data, job, name):
     device = load_device(name)
     program = fabricated(str(job), name).program
@@ -91,12 +111,12 @@ def test_a_position_the_program_never_reaches_says_nothing():
     assert first_undrawn(program, device, strokes, 3, PenPosition(-777, 12345, True), len(program.text)) is None
 
 
-def replug(device, fab, cut: int, drain: bool):
+def replug(device, fab, cut: int, drain: bool, options: str = ""):
     """Stream until the cable is pulled after ``cut`` bytes; optionally let the plotter draw what
     it holds; plug the cable back in, locate the pen and resume.  Returns the acknowledged
     stroke, the located one, the plotter, its state when located (x, y, pen down) and the note."""
     session = f"replug{next(_session)}"
-    url = f"sim://?time=instant&sheet=A3&session={session}"
+    url = f"sim://?time=instant&sheet=A3&session={session}{options}"
     port = open_port(f"{url}&disconnect_after={cut}", device, baudrate=FAST_BAUD)
     with pytest.raises(StreamStopped) as stopped:
         stream(port, fab.program, device)
@@ -141,8 +161,8 @@ def test_a_plotter_switched_off_and_on_is_not_trusted():
     last acknowledged stroke."""
     device = load_device("hp7475a")
     program = fabricated(str(ROOT / "jobs/star.toml"), "hp7475a").program
-    assert locate_resume(program, device, "sim://?time=instant", 5, 0) == \
-        (5, "the plotter was initialized since it stopped, so its position says nothing")
+    stroke, note = locate_resume(program, device, "sim://?time=instant", 5, 0)
+    assert stroke == 5 and note.startswith("the plotter was initialized since it stopped")
     port = open_port("sim://?time=instant", device)
     port.simulator.machine.position = (100.0, 200.0)
     port.write(b"OS;")  # the engine's first checkpoint reads OS: "initialized" is cleared
@@ -150,10 +170,28 @@ def test_a_plotter_switched_off_and_on_is_not_trusted():
     assert locate_pen(port, device) == PenPosition(100, 200, False)
 
 
-def test_gcode_devices_are_not_located():
+@pytest.mark.parametrize("drain", [False, True], ids=["replugged-at-once", "replugged-after-it-stopped"])
+def test_a_grbl_board_that_does_not_reset_on_opening_is_located(drain):
+    """A board behind a bridge that does not reset it (reset_on_open=0) keeps its position: it
+    finishes what it holds, a soft reset at rest clears a line the cable cut, and its status
+    gives the position."""
+    device, fab = job_for("grbl", None)
+    want = strokes_of(fab.program, device)
+    acked, located, plotter, stop, note = replug(device, fab, 1500, drain, "&reset_on_open=0")
+    drawn = [s for s in plotter.strokes if s.length > 0]  # the tool resting through the reset: a dot
+    first_run = drawn[:len(drawn) - (len(want) - located)]
+    assert same_points(drawn[len(first_run):], want[located:])
+    complete = leading_matches(first_run, want)
+    assert len(first_run) - complete <= 1
+    assert acked < located == complete, note  # GRBL held more than it had acknowledged
+    assert "more stroke(s) after the last acknowledgement" in note
+
+
+def test_a_grbl_board_that_resets_on_opening_is_not_trusted():
     device = load_device("grbl")
     program = fabricated(str(ROOT / "jobs/star.toml"), "grbl").program
-    assert locate_resume(program, device, "sim://?time=instant", 5, 0) == (5, "")
+    stroke, note = locate_resume(program, device, "sim://?time=instant", 5, 0)
+    assert stroke == 5 and note.startswith("the plotter was initialized since it stopped")
     assert locate_pen(open_port("sim://?time=instant", device), device) is None
 
 
