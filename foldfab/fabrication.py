@@ -11,6 +11,7 @@ scored.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -172,25 +173,38 @@ class Fabrication:
     placement: Any          # foldfab.placement.Placement: crease-pattern mm -> sheet mm (front side)
     plan: PlotPlan
     program: Any            # foldfab.program.Program
-    travel_before: dict     # pen-up travel of the unoptimized plan (optimize.travel)
-    travel_after: dict
+    design: Design
+    device: DeviceProfile
+
+    @cached_property
+    def travel_after(self) -> dict:
+        """Pen-up travel of the plan (:func:`foldfab.optimize.travel`)."""
+        from foldfab.optimize import travel
+
+        return travel(self.plan, park_position(self.device, self.plan.sheet))
+
+    @cached_property
+    def travel_before(self) -> dict:
+        """Pen-up travel of the same plan unoptimized (built on demand: only reports need it)."""
+        from dataclasses import replace
+
+        from foldfab.optimize import travel
+
+        if self.spec.optimize == "none":
+            return self.travel_after
+        unoptimized = build_plan(self.design, self.device, replace(self.spec, optimize="none"))
+        return travel(unoptimized, park_position(self.device, self.plan.sheet))
 
 
 def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None) -> Fabrication:
     """Plan, optimize and write the program of ``design`` for ``device``."""
-    from dataclasses import replace
-
-    from foldfab.optimize import travel
     from foldfab.program import write_program
 
     if spec is None:
         spec = parse_fabrication(design.job.fabrication, str(design.job.path))
     plan = build_plan(design, device, spec)
-    park = park_position(device, plan.sheet)
-    before = travel(build_plan(design, device, replace(spec, optimize="none")), park) \
-        if spec.optimize != "none" else travel(plan, park)
     placement, _ = place(design, device, spec)
-    return Fabrication(spec, placement, plan, write_program(plan, device), before, travel(plan, park))
+    return Fabrication(spec, placement, plan, write_program(plan, device), design, device)
 
 
 def park_position(device: DeviceProfile, sheet: tuple[float, float]) -> complex:
