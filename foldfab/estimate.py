@@ -55,8 +55,11 @@ class Estimate:
         return self.draw_time + self.travel_time + self.lift_time
 
 
-def move_times(lengths: np.ndarray, speed: float, acceleration: float) -> np.ndarray:
-    """Seconds for straight moves of ``lengths`` (mm), each from rest to rest (trapezoid)."""
+def move_times(lengths: np.ndarray, speed: float | np.ndarray, acceleration: float) -> np.ndarray:
+    """Seconds for straight moves of ``lengths`` (mm), each from rest to rest (trapezoid).
+
+    ``speed`` is one for all moves or one per move.
+    """
     import numpy as np
 
     lengths = np.asarray(lengths, dtype=float)
@@ -69,16 +72,33 @@ def straight_runs(points: np.ndarray) -> np.ndarray:
     """Lengths of the straight moves in a polyline: collinear segments merged, zero ones dropped."""
     import numpy as np
 
+    return polyline_runs(points, np.zeros(1, dtype=np.intp))[1]
+
+
+def polyline_runs(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Polylines stored one after another in ``points`` (N, 2), polyline k from row ``starts[k]``.
+
+    Returns each polyline's length, the lengths of all their straight moves in order (as
+    :func:`straight_runs` finds them in each polyline) and the polyline of each move.
+    """
+    import numpy as np
+
+    count = len(starts)
+    owner = np.repeat(np.arange(count), np.diff(starts, append=len(points)))  # polyline of each point
     steps = np.diff(points, axis=0)
     lengths = np.hypot(steps[:, 0], steps[:, 1])
-    steps, lengths = steps[lengths > 0], lengths[lengths > 0]
+    within = owner[1:] == owner[:-1]  # the segment joins two points of one polyline
+    steps, lengths, owner = steps[within], lengths[within], owner[1:][within]
+    totals = np.bincount(owner, weights=lengths, minlength=count)
+    moving = lengths > 0
+    steps, lengths, owner = steps[moving], lengths[moving], owner[moving]
     if not len(lengths):
-        return lengths
+        return totals, lengths, owner
     cross = steps[:-1, 0] * steps[1:, 1] - steps[:-1, 1] * steps[1:, 0]
     dot = (steps[:-1] * steps[1:]).sum(axis=1)
-    corner = np.abs(np.arctan2(cross, dot)) > CONTINUATION_ANGLE
-    starts = np.concatenate([[0], np.flatnonzero(corner) + 1])
-    return np.add.reduceat(lengths, starts)
+    corner = (np.abs(np.arctan2(cross, dot)) > CONTINUATION_ANGLE) | (owner[1:] != owner[:-1])
+    runs = np.concatenate([[0], np.flatnonzero(corner) + 1])
+    return totals, np.add.reduceat(lengths, runs), owner[runs]
 
 
 def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
@@ -86,32 +106,43 @@ def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
     import numpy as np
 
     motion = device.motion
-    layers: dict[str, LayerTime] = {}
-    draw_time = lower = 0.0
-    for stroke in interpretation.strokes:
-        stats = layers.setdefault(stroke.layer, LayerTime())
-        length = stroke.length
-        seconds = float(move_times(straight_runs(stroke.points), stroke.speed,
-                                   motion.acceleration).sum())
-        stats.drawn_length += length
-        stats.pen_lifts += 1
-        stats.time += seconds + 2 * motion.pen_lift_time
-        draw_time += seconds
-        lower += length / stroke.speed
-    travel_time = 0.0
-    strokes = interpretation.strokes
-    if interpretation.travels:
-        ends = np.array([[t.start, t.end] for t in interpretation.travels])
-        lengths = np.hypot(*(ends[:, 1] - ends[:, 0]).T)
-        times = move_times(lengths, motion.travel_speed, motion.acceleration)
-        travel_time = float(times.sum())
-        for travel, length, seconds in zip(interpretation.travels, lengths, times):
-            if strokes:
-                stroke = strokes[min(travel.next_stroke, len(strokes) - 1)]
-                stats = layers.setdefault(stroke.layer, LayerTime())
-            else:
-                stats = layers.setdefault("travel", LayerTime())
-            stats.travel_length += float(length)
-            stats.time += float(seconds)
+    strokes, travels = interpretation.strokes, interpretation.travels
+    names: dict[str, int] = {}  # layer name -> index, in order of first appearance
+    stroke_layers = np.array([names.setdefault(s.layer, len(names)) for s in strokes], dtype=np.intp)
+    speeds = np.array([s.speed for s in strokes], dtype=float)
+    sizes = np.array([len(s.points) for s in strokes], dtype=np.intp)
+    points = np.concatenate([s.points for s in strokes]) if strokes else np.zeros((0, 2))
+    lengths, runs, owners = polyline_runs(points, np.cumsum(sizes) - sizes)
+    run_times = move_times(runs, speeds[owners], motion.acceleration)
+    seconds = np.bincount(owners, weights=run_times, minlength=len(strokes))
+    ends = np.array([(*t.start, *t.end) for t in travels], dtype=float).reshape(-1, 4)
+    travel_lengths = np.hypot(ends[:, 2] - ends[:, 0], ends[:, 3] - ends[:, 1])
+    travel_times = move_times(travel_lengths, motion.travel_speed, motion.acceleration)
+    if strokes:
+        leads_to = np.array([t.next_stroke for t in travels], dtype=np.intp)
+        travel_layers = stroke_layers[np.minimum(leads_to, len(strokes) - 1)]
+    else:
+        if travels:
+            names["travel"] = 0
+        travel_layers = np.zeros(len(travels), dtype=np.intp)
+    count = len(names)
+    lifts = np.bincount(stroke_layers, minlength=count)
+    drawn = np.bincount(stroke_layers, weights=lengths, minlength=count)
+    travelled = np.bincount(travel_layers, weights=travel_lengths, minlength=count)
+    # each layer's strokes, then the travels that lead to it, each in order (bincount adds in order)
+    times = np.bincount(np.concatenate([stroke_layers, travel_layers]),
+                        weights=np.concatenate([seconds + 2 * motion.pen_lift_time, travel_times]),
+                        minlength=count)
+    layers = {name: LayerTime(float(drawn[i]), int(lifts[i]), float(travelled[i]), float(times[i]))
+              for name, i in names.items()}
     lift_time = 2 * motion.pen_lift_time * len(strokes)
-    return Estimate(draw_time, travel_time, lift_time, lower + lift_time, layers)
+    lower = _running_total(lengths / speeds)
+    return Estimate(_running_total(seconds), float(travel_times.sum()), lift_time,
+                    lower + lift_time, layers)
+
+
+def _running_total(values: np.ndarray) -> float:
+    """The sum of ``values`` added one by one in order (as a loop over strokes adds them)."""
+    import numpy as np
+
+    return float(np.cumsum(values)[-1]) if len(values) else 0.0

@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import math
 import re
+from array import array
 from dataclasses import dataclass, field
+from itertools import chain
 from typing import TYPE_CHECKING
 
 from foldfab.errors import FoldfabError
@@ -33,8 +35,24 @@ if TYPE_CHECKING:
 
 ESC, ETX = 0x1B, 0x03
 ESC_WITH_PARAMETERS = b"@HIMNT"  # ESC . x <parameters> :   (the others take none)
+_CHUNK = 1 << 16  # bytes HPGLMachine.run tokenizes at a time
 _PARAM_RUN = re.compile(rb"[0-9+\-.,\s]*")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
+_NUMBER_BYTES = re.compile(_NUMBER.pattern.encode())
+# Parameters that read without error: numbers separated by commas, whitespace or the
+# next one's sign, and nothing else (the rule of HPGLTokenizer._command's loop).  Atomic
+# numbers and possessive repeats: a text that is not plain fails in linear time.
+_PLAIN = r"[\s,]*+(?:(?>{0})(?:[\s,]++(?>{0})|(?=[+-])(?>{0}))*+)?+[\s,]*+".format(_NUMBER.pattern)
+_PLAIN_PARAMS = re.compile(_PLAIN)
+_IDLE_SKIP = rb"[^A-Za-z\x1b\x80-\xff]*+"  # bytes the tokenizer passes over between commands
+# A whole command as the byte-by-byte reader sees it from state "idle": bytes it skips,
+# a two-letter ASCII mnemonic other than LB, its complete parameter run (group 2 if just
+# integers between commas, as foldfab writes them, else group 3, plain), and the end of
+# that run: a ";" (consumed) or the first byte of whatever follows.
+_PLAIN_COMMAND = re.compile(_IDLE_SKIP + rb"(?![Ll][Bb])([A-Za-z]{2})"
+                            rb"(?:(-?\d++(?:,-?\d++)*+)|(" + _PLAIN.encode() + rb"))"
+                            rb"(?:;|(?=[^0-9+\-.,\s]))")
+_SKIP = re.compile(_IDLE_SKIP)
 
 
 @dataclass(frozen=True)
@@ -63,6 +81,11 @@ class HPGLTokenizer:
     at a time, each as soon as its pair is complete (``PD1,2,3,4;`` gives ``PD 1,2``
     at offset 0 and ``PD 3,4`` with ``part`` 1 at the ``3``); HP-GL means the same, and a
     plotter executes a long polyline pair by pair instead of holding it whole.
+
+    Complete commands whose parameters read without error take a fast path (one regular
+    expression match each); labels, ``ESC`` sequences, errors and a command still open at
+    the end of the data go byte by byte.  Both give the same commands, however the stream
+    is cut into ``feed`` calls.
     """
 
     def __init__(self, split_coordinates: bool = False) -> None:
@@ -85,7 +108,11 @@ class HPGLTokenizer:
         i, n = 0, len(data)
         while i < n:
             state = self._state
-            if state == "params":
+            if state == "idle":
+                i = self._plain_commands(data, i, out)
+                if i == n:
+                    break
+            elif state == "params":
                 end = _PARAM_RUN.match(data, i).end()
                 self._pending += data[i:end]
                 i = end
@@ -142,6 +169,32 @@ class HPGLTokenizer:
         self.offset += n
         return out
 
+    def _plain_commands(self, data: bytes, i: int, out: list[HPGLCommand]) -> int:
+        """Fast path in state "idle": append the commands of ``data[i:]`` that
+        ``_PLAIN_COMMAND`` reads, up to the first it cannot, and pass over the bytes state
+        "idle" ignores after them; return where the byte-by-byte reader takes over.
+
+        The byte-by-byte reader would give the same commands (labels, ``ESC`` sequences,
+        parameters with an error and a command not ended yet in ``data`` are left to it).
+        """
+        match, offset = _PLAIN_COMMAND.match, self.offset
+        split = self._split
+        while (found := match(data, i)) is not None:
+            i = found.end()
+            name = found[1].upper().decode()
+            group = 2 if found[2] is not None else 3
+            params = found[group]
+            if split and name in COORDINATE_COMMANDS:
+                self._name, self._start, self._part = name, offset + found.start(1), 0
+                self._pending += params
+                out += self._pairs(offset + found.end(group))
+                out.append(self._finish())
+            else:
+                self._part = 0  # as any mnemonic leaves it (an ESC. instruction reads it)
+                numbers = params.split(b",") if group == 2 else _NUMBER_BYTES.findall(params)
+                out.append(HPGLCommand(name, tuple(map(float, numbers)), offset + found.start(1)))
+        return _SKIP.match(data, i).end()
+
     def abort(self) -> None:
         """Drop the instruction being read (``ESC.K``: its bytes never form a command)."""
         self._pending.clear()
@@ -174,6 +227,9 @@ class HPGLTokenizer:
         return pieces
 
     def _command(self, text: str, separator: str) -> HPGLCommand:
+        if separator == "," and _PLAIN_PARAMS.fullmatch(text):  # no error: skip the checks
+            numbers = tuple(map(float, _NUMBER.findall(text)))
+            return HPGLCommand(self._name, numbers, self._start, part=self._part)
         numbers, end, bad = [], 0, False
         for match in _NUMBER.finditer(text):
             gap = text[end:match.start()]
@@ -295,7 +351,12 @@ class Machine:
         self.stroke: list[tuple[float, float]] | None = None
         self.stroke_meta: dict = {}
         self.at = 0  # byte offset of the command being executed
-        self.raw_travels: list[tuple[tuple[float, float], tuple[float, float], int]] = []
+        self.travel_ends = array("d")  # x0, y0, x1, y1 of each pen-up move (device units)
+        self.travel_next = array("q")  # the stroke each one leads to
+        self.deferred: list[int] | None = None
+        """While ``run`` runs: the point count of each stroke it closed; their ``points`` stay
+        None until :meth:`finish` converts ``deferred_points`` (device units) all at once."""
+        self.deferred_points = array("d")
 
     def lower(self, offset: int, **meta) -> None:
         if self.stroke is None:
@@ -304,20 +365,29 @@ class Machine:
 
     def lift(self) -> None:
         if self.stroke is not None:
-            self.result.strokes.append(self.open_stroke())
+            if self.deferred is None:
+                self.result.strokes.append(self.open_stroke())
+            else:
+                self.result.strokes.append(self._stroke(None))
+                self.deferred.append(len(self.stroke))
+                self.deferred_points.extend(chain.from_iterable(self.stroke))
             self.stroke = None
 
     def open_stroke(self) -> Stroke:
         """The stroke being drawn (pen down now), as it would be if the pen went up here."""
+        return self._stroke(self.frame.to_sheet(self.stroke))
+
+    def _stroke(self, points: np.ndarray | None) -> Stroke:
         meta = self.stroke_meta
         section = self.known.section_at(meta["offset"]) if self.known else None
-        return Stroke(points=self.frame.to_sheet(self.stroke), section=section, end=self.at, **meta)
+        return Stroke(points=points, section=section, end=self.at, **meta)
 
     def move_to(self, target: tuple[float, float]) -> None:
         if self.stroke is not None:
             self.stroke.append(target)
         elif target != self.position:
-            self.raw_travels.append((self.position, target, len(self.result.strokes)))
+            self.travel_ends.extend(self.position + target)
+            self.travel_next.append(len(self.result.strokes))
         self.position = target
 
     def sheet_point(self, point: tuple[float, float]) -> tuple[float, float]:
@@ -326,18 +396,29 @@ class Machine:
 
     def finish(self) -> Interpretation:
         self.lift()
+        if self.deferred is not None:
+            self._convert_deferred()
         self.result.travels = self.sheet_travels()
         return self.result
+
+    def _convert_deferred(self) -> None:
+        """Give the strokes ``run`` closed their points in sheet mm (one conversion for all)."""
+        import numpy as np
+
+        sizes, raw = self.deferred, self.deferred_points
+        self.deferred, self.deferred_points = None, array("d")
+        sheet, start = self.frame.to_sheet(np.frombuffer(raw)), 0
+        for stroke, size in zip(self.result.strokes[len(self.result.strokes) - len(sizes):], sizes):
+            stroke.points = sheet[start:start + size]
+            start += size
 
     def sheet_travels(self) -> list[Travel]:
         """The pen-up moves so far, in sheet mm."""
         import numpy as np
 
-        if not self.raw_travels:
-            return []
-        ends = np.array([[a, b] for a, b, _ in self.raw_travels]).reshape(-1, 2)
-        sheet = self.frame.to_sheet(ends).reshape(-1, 2, 2).tolist()
-        return [Travel(tuple(s), tuple(e), nxt) for (s, e), (_, _, nxt) in zip(sheet, self.raw_travels)]
+        flat = iter(self.frame.to_sheet(np.frombuffer(self.travel_ends)).ravel().tolist())
+        return [Travel((x0, y0), (x1, y1), nxt)
+                for (x0, y0, x1, y1), nxt in zip(zip(flat, flat, flat, flat), self.travel_next)]
 
 
 class HPGLMachine(Machine):
@@ -355,17 +436,24 @@ class HPGLMachine(Machine):
 
     def run(self, text: str) -> Interpretation:
         tokenizer = HPGLTokenizer()
+        self.deferred = []
         marks = list(self.known.pauses) if self.known else []
-        commands = tokenizer.feed(text.encode("latin-1")) + tokenizer.close()
+        data = text.encode("latin-1")
+        for start in range(0, len(data), _CHUNK):  # a chunk's commands are garbage once run
+            self._run_commands(tokenizer.feed(data[start:start + _CHUNK]), marks)
+        self._run_commands(tokenizer.close(), marks)
+        self.at = len(text)
+        for mark in marks:
+            self.pause(mark)
+        return self.finish()
+
+    def _run_commands(self, commands: list[HPGLCommand], marks: list[PauseMark]) -> None:
+        """Execute ``commands``, pausing first at the ``marks`` they reach (popped)."""
         for command in commands:
             self.at = command.offset
             while marks and marks[0].offset <= command.offset:
                 self.pause(marks.pop(0))
             self.execute(command)
-        self.at = len(text)
-        for mark in marks:
-            self.pause(mark)
-        return self.finish()
 
     def pause(self, mark: PauseMark) -> None:
         self.lift()
@@ -376,20 +464,23 @@ class HPGLMachine(Machine):
         name, params = command.name, command.params
         if command.error:
             self.result.ignored.append(f"{name} at byte {command.offset}: {command.error}")
-        elif name in ("PU", "PD", "PA", "PR"):
+        elif name in COORDINATE_COMMANDS:
             if name == "PU":
                 self.lift()
             elif name == "PD":
-                self.lower(command.offset, pen=self.pen, force=self.current(self.forces),
-                           speed=self.current(self.speeds), pen_down=None)
-            if name in ("PA", "PR"):
+                if self.stroke is None:
+                    self.lower(command.offset, pen=self.pen, force=self.current(self.forces),
+                               speed=self.current(self.speeds), pen_down=None)
+            else:
                 self.absolute = name == "PA"
             if len(params) % 2:
                 self.result.ignored.append(f"{name} at byte {command.offset}: odd coordinate count")
-            for x, y in zip(params[::2], params[1::2]):
-                if not self.absolute:
-                    x, y = x + self.position[0], y + self.position[1]
-                self.move_to((x, y))
+            if self.absolute:
+                for i in range(1, len(params), 2):
+                    self.move_to((params[i - 1], params[i]))
+            else:
+                for x, y in zip(params[::2], params[1::2]):
+                    self.move_to((x + self.position[0], y + self.position[1]))
         elif name == "SP":
             self.lift()
             self.pen = int(params[0]) if params else 0
@@ -475,6 +566,7 @@ class GcodeMachine(Machine):
 
     def run(self, text: str) -> Interpretation:
         offset = 0
+        self.deferred = []
         for raw in text.split("\n"):
             end = offset + len(raw) + 1
             self.at = offset

@@ -6,6 +6,7 @@ Also home of the helpers the writer tests share: plan builders and the round-tri
 from __future__ import annotations
 
 import math
+from itertools import accumulate
 
 import numpy as np
 import pytest
@@ -15,7 +16,8 @@ from hypothesis import strategies as st
 
 from foldfab.devices import DeviceProfile, load_device
 from foldfab.estimate import estimate, move_times, straight_runs
-from foldfab.interpret import HPGLTokenizer, interpret
+from foldfab.interpret import (GcodeMachine, HPGLMachine, HPGLTokenizer, Interpretation, Stroke,
+                               Travel, interpret)
 from foldfab.plan import Pass, Pause, PlotPlan, Tool
 from foldfab.program import Program, write_program
 
@@ -146,17 +148,57 @@ def test_tokenizer_device_control_and_errors():
     assert result[4][0] == "P" and result[4][4] == "not a mnemonic"
 
 
-@given(st.lists(st.integers(1, 7), min_size=1, max_size=40))
-def test_tokenizer_is_incremental(cuts):
-    """Any split of the byte stream gives the same commands as feeding it whole."""
-    data = b"IN;SP2;VS 4.5;\x1b.B PU100,200;PD 1,2,3,4 , 5 6;LBab\x03FS12,2;PU;SP0"
-    whole = tokens(data)
-    tok, got, i = HPGLTokenizer(), [], 0
-    for size in cuts * 20:
-        got += tok.feed(data[i:i + size])
-        i += size
-    got += tok.feed(data[i:]) + tok.close()
-    assert [(c.name, c.params, c.offset, c.text, c.error) for c in got] == whole
+HPGL_PIECES = [
+    b"IN", b"SP", b"PU", b"PD", b"pa", b"Pr", b"VS", b"XY", b"P", b"LB", b"lb", b"\xe9a",
+    b"\x1b.B", b"\x1b.@", b"\x1b.K", b"\x1bX", b";", b":", b"\x03", b",", b" ", b"\n", b"\t",
+    b"+", b"-", b".", b"1", b"23", b"4.5", b"-60", b"7,8", b",9", b"hello", b"PD1,2,3,4;",
+    b"\x1b.@1;2:",
+]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.sampled_from(HPGL_PIECES), max_size=40).map(b"".join),
+       st.lists(st.integers(1, 9), min_size=1, max_size=40), st.booleans())
+def test_tokenizer_is_incremental(data, cuts, split):
+    """Any split of the byte stream gives the same commands as feeding it whole.
+
+    Fed whole, complete commands take the fast path; fed in small pieces, most go byte by
+    byte through the state machine; labels, ESC sequences, errors, lone letters and
+    coordinate pairs (``split_coordinates``) must come out the same either way.
+    """
+
+    def read(pieces):
+        tok, got = HPGLTokenizer(split_coordinates=split), []
+        for piece in pieces:
+            got += tok.feed(piece)
+            assert tok.committed <= tok.offset
+        assert tok.offset == len(data)
+        committed = tok.committed
+        got += tok.close()
+        return [(c.name, c.params, c.offset, c.text, c.error, c.part) for c in got], committed
+
+    ends = [*accumulate(cuts), len(data)]
+    pieces = [data[a:b] for a, b in zip([0, *ends], ends)]
+    assert read(pieces) == read([data])
+
+
+@pytest.mark.parametrize("split", [False, True])
+def test_tokenizer_fast_and_byte_by_byte_readings_agree(split):
+    data = b"IN;SP1;PD1,2,-3,4;PU 1 2 3-4;pa.5,1.;VS1..2;XY;P;LBa;b\x03\x1b.@1;2:PR1,2\x1b.K;" \
+        b"PD1,2,3,4;SP2;\x1b.@3:PD1,2"
+
+    def read(pieces):
+        tok = HPGLTokenizer(split_coordinates=split)
+        got = [c for piece in pieces for c in tok.feed(piece)] + tok.close()
+        return [(c.name, c.params, c.offset, c.text, c.error, c.part) for c in got]
+
+    whole = read([data])
+    assert read(data[i:i + 1] for i in range(len(data))) == whole
+    if not split:
+        assert [c[:3] for c in whole[:5]] == [
+            ("IN", (), 0), ("SP", (1.0,), 3), ("PD", (1.0, 2.0, -3.0, 4.0), 7),
+            ("PU", (1.0, 2.0, 3.0, -4.0), 18), ("PA", (0.5, 1.0), 29)]
+        assert whole[5][0] == "VS" and whole[5][4] is not None
 
 
 # --- HPGL machine ---------------------------------------------------------------------
@@ -224,6 +266,43 @@ def test_gcode_machine_servo_pen(tmp_path):
     assert result.ignored == []
 
 
+@pytest.mark.parametrize("name", ["hp7475a", "grbl"])
+def test_interpret_gives_what_the_machine_gives_command_by_command(name):
+    """interpret converts all strokes to sheet mm at once at the end; a machine executing one
+    command (or line) at a time, as the simulators and resume do, converts each as the pen
+    lifts: the same strokes and travels either way."""
+    device = load_device(name)
+
+    @settings(max_examples=20, deadline=None)
+    @given(random_plans(device))
+    def check(plan):
+        program = write_program(plan, device)
+        frame, text = device.frame(plan.sheet), program.text
+        if device.protocol == "hpgl":
+            machine = HPGLMachine(device, frame, program)
+            tokenizer = HPGLTokenizer()
+            for command in tokenizer.feed(text.encode("latin-1")) + tokenizer.close():
+                machine.at = command.offset
+                machine.execute(command)
+        else:
+            machine, offset = GcodeMachine(device, frame, program), 0
+            for raw in text.split("\n"):
+                machine.at = offset
+                machine.execute(raw, offset, min(offset + len(raw) + 1, len(text)))
+                offset += len(raw) + 1
+        machine.at = len(text)
+        stepwise, result = machine.finish(), interpret(program, device, plan.sheet)
+        assert len(result.strokes) == len(stepwise.strokes) == len(expected_strokes(plan))
+        for got, want in zip(result.strokes, stepwise.strokes):
+            assert got.points.shape == want.points.shape and np.array_equal(got.points, want.points)
+            assert (got.offset, got.end, got.pen, got.force, got.speed, got.pen_down, got.section) == \
+                (want.offset, want.end, want.pen, want.force, want.speed, want.pen_down, want.section)
+        assert [(t.start, t.end, t.next_stroke) for t in result.travels] == \
+            [(t.start, t.end, t.next_stroke) for t in stepwise.travels]
+
+    check()
+
+
 def test_program_for_another_protocol_is_refused():
     from foldfab.errors import FoldfabError
 
@@ -247,6 +326,46 @@ def test_straight_runs_merge_collinear_segments_only():
     points = np.array([[0, 0], [1, 0], [2, 0], [2, 0], [3, 0.001], [3, 5], [3, 0]])
     runs = straight_runs(points)
     assert runs.tolist() == pytest.approx([3.0000001666, 4.999, 5.0], rel=1e-6)
+
+
+def test_estimate_keeps_strokes_apart():
+    """Two strokes on one line, one after the other: each is its own straight move."""
+    device = load_device("hp7475a")
+    motion = device.motion
+    strokes = [Stroke(np.array(points, dtype=float), 1, None, 10.0, None, 0)
+               for points in ([[0, 0], [5, 0], [10, 0]], [[20, 0], [30, 0]], [[40, 0]])]
+    run = Interpretation("hpgl", strokes, [Travel((10.0, 0.0), (20.0, 0.0), 1)])
+    result = estimate(run, device)
+    ten_mm = move_times(np.array([10.0]), 10.0, motion.acceleration)[0]
+    assert result.draw_time == pytest.approx(2 * ten_mm)
+    assert result.lower_bound == pytest.approx(2.0 + 6 * motion.pen_lift_time)
+    pen = result.layers["pen 1"]
+    assert (pen.drawn_length, pen.pen_lifts, pen.travel_length) == (20.0, 3, 10.0)
+
+
+@pytest.mark.parametrize("name", DEVICES)
+def test_estimate_is_the_sum_of_each_stroke_on_its_own(name):
+    """Estimated for all strokes at once, it adds up what each stroke's points give alone."""
+    device = load_device(name)
+    acceleration = device.motion.acceleration
+
+    @settings(max_examples=25, deadline=None)
+    @given(random_plans(device))
+    def check(plan):
+        run = interpret(write_program(plan, device), device, plan.sheet)
+        result = estimate(run, device)
+        seconds = [float(move_times(straight_runs(s.points), s.speed, acceleration).sum())
+                   for s in run.strokes]
+        assert result.draw_time == pytest.approx(sum(seconds), rel=1e-12, abs=1e-12)
+        lower = sum(s.length / s.speed for s in run.strokes) + result.lift_time
+        assert result.lower_bound == pytest.approx(lower, rel=1e-12, abs=1e-12)
+        drawn: dict[str, float] = {}
+        for stroke in run.strokes:
+            drawn[stroke.layer] = drawn.get(stroke.layer, 0.0) + stroke.length
+        assert {k: v.drawn_length for k, v in result.layers.items() if v.pen_lifts} == \
+            pytest.approx(drawn, rel=1e-12, abs=1e-12)
+
+    check()
 
 
 def serpentine_plan(device: DeviceProfile, count: int = 10) -> tuple[PlotPlan, float]:
