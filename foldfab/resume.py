@@ -197,7 +197,7 @@ def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke]
     """
     start = strokes[stroke - 1].end if stroke > 0 else 0
     tolerance = 0.5 if program.protocol == "hpgl" else 0.0015  # a plotter unit; GRBL's 3 decimals
-    for end, machine in _pen_states(program, device):
+    for end, machine in _pen_states(program.text, program.protocol, device):
         if end > limit:
             return None
         down = machine.stroke is not None
@@ -211,14 +211,14 @@ def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke]
     return None
 
 
-def _pen_states(program: Program, device: DeviceProfile):
-    """(end offset, machine) after each step a plotter takes: an HP-GL coordinate pair or
-    instruction, a G-code line.  The machine is the same object, updated in place."""
+def _pen_states(text: str, protocol: str, device: DeviceProfile):
+    """(end offset, machine) after each step a plotter takes in program ``text``: an HP-GL
+    coordinate pair or instruction, a G-code line (at least one, even in an empty text).
+    The machine is the same object, updated in place."""
     from foldfab.interpret import GcodeMachine, HPGLMachine, HPGLTokenizer
 
     frame = device.frame(device.sheet)
-    text = program.text
-    if program.protocol == "hpgl":
+    if protocol == "hpgl":
         machine = HPGLMachine(device, frame, None)
         tokenizer = HPGLTokenizer(split_coordinates=True)
         commands = tokenizer.feed(text.encode("ascii")) + tokenizer.close()
@@ -291,14 +291,10 @@ def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
                 latest.pop(key, None)
                 latest[key] = text[command.offset:end]
         return "".join(latest.values())
-    from foldfab.interpret import GcodeMachine
     from foldfab.program import fmt_number
 
-    machine = GcodeMachine(device, device.frame(device.sheet), None)
-    start = 0
-    for raw in text.split("\n"):
-        machine.execute(raw, start, start + len(raw) + 1)
-        start += len(raw) + 1
+    for _, machine in _pen_states(text, "gcode", device):
+        pass  # to the end of the text: the modes in force there
     if machine.feed is None:
         return "G0\n" if machine.motion == "G0" else ""
     return f"{machine.motion} F{fmt_number(machine.feed * 60 / machine.scale, 3)}\n"
