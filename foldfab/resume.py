@@ -25,10 +25,12 @@ Resume states are JSON files in ``$XDG_STATE_HOME/foldfab/resume/`` (default
     {"version": 1, "token": "3f9a1c", "created": "2026-01-31T12:00:00+00:00",
      "job": "/abs/path/job.toml", "device": "hp7475a", "port": "/dev/ttyUSB0",
      "program_sha256": "...", "program_bytes": 9156,
-     "stroke": 41, "strokes": 279, "pauses_done": 0, "reason": "..."}
+     "stroke": 41, "strokes": 279, "pauses_done": 0, "reason": "...", "locate": true}
 
 ``stroke`` is the index (in ``interpret(program).strokes``) of the first stroke not
-known to be drawn; ``pauses_done`` counts the operator pauses already confirmed.
+known to be drawn; ``pauses_done`` counts the operator pauses already confirmed;
+``locate`` is false when the plotter reported an error (it skipped an instruction, so
+its position would place the resume past a stroke it did not draw correctly).
 """
 
 from __future__ import annotations
@@ -82,6 +84,8 @@ class ResumeState:
     strokes: int
     pauses_done: int
     reason: str
+    locate: bool = True
+    """Ask the plotter where it stopped before resuming (not after it reported an error)."""
     created: str = field(default_factory=lambda: datetime.now(timezone.utc).isoformat(timespec="seconds"))
     version: int = STATE_VERSION
 
@@ -345,7 +349,9 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
     settings = dict(baudrate=baudrate, xonxoff=xonxoff, rtscts=rtscts)
     if state is not None:
         check_state(state, program, job, device)
-        first, found = locate_resume(program, device, port, state.stroke, state.pauses_done, **settings)
+        first, found = (locate_resume(program, device, port, state.stroke, state.pauses_done, **settings)
+                        if state.locate else
+                        (state.stroke, "the plotter reported an error, so where it stopped is not used"))
         if first >= len(strokes):  # the plotter drew the rest after its host lost it
             from foldfab.stream import StreamResult
 
@@ -374,7 +380,7 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
             token = state.token if state is not None else new_token()
             save_state(ResumeState(token, str(Path(job).resolve()), device.name, port,
                                    program_hash(program), len(program.text), stroke, len(strokes),
-                                   pauses_done, str(stop)))
+                                   pauses_done, str(stop), locate=not stop.plotter_error))
         elif state is not None:
             state.path.unlink(missing_ok=True)
         raise PlotStopped(stop, token, stroke, len(strokes)) from None

@@ -158,10 +158,13 @@ class StreamStopped(FoldfabError):
     """The job stopped before its end; the tool was lifted if the plotter could be reached."""
 
     def __init__(self, message: str, *, acknowledged: int, pauses_done: int, cancelled: bool,
-                 lifted: bool):
+                 lifted: bool, plotter_error: bool = False):
         super().__init__(message)
         self.acknowledged = acknowledged
         """Program bytes certainly executed: a resume starts at the first stroke after them."""
+        self.plotter_error = plotter_error
+        """The plotter reported an error: it skipped an instruction, so where its pen stopped
+        does not tell how far it drew correctly (a resume must not be located by it)."""
         self.pauses_done = pauses_done
         self.cancelled = cancelled
         """Stopped on request (cancel event, Ctrl-C, no at a pause), not by a fault."""
@@ -279,6 +282,7 @@ class _Sender:
         self.wire_free = 0.0  # when the bytes written so far will have left the wire
         self.inbox = bytearray()
         self.stopping = False
+        self.plotter_error = False  # the plotter reported an error (see StreamStopped)
 
     def run(self, note: str = "") -> StreamResult:
         timeout = self.port.timeout
@@ -327,7 +331,8 @@ class _Sender:
         message = reason + (f"; {note}" if note else "")
         self.emit("stopped", message)
         raise StreamStopped(message, acknowledged=self.acked, pauses_done=self.pauses_done,
-                            cancelled=cancelled, lifted=lifted)
+                            cancelled=cancelled, lifted=lifted,
+                            plotter_error=suspect or self.plotter_error)
 
     # -- time and events ---------------------------------------------------------------------
     @property
@@ -655,6 +660,7 @@ class _HPGLSender(_Sender):
         error = self.ask(b"OE;", "OE (output error)", self.patience(self.acked, self.sent))[0]
         if error:  # somewhere since the last checkpoint: those bytes count as not executed
             self.acked = self.checked
+            self.plotter_error = True
             meaning = HPGL_ERRORS.get(error, "unknown error")
             return "" if suspect else f"the plotter also reports HP-GL error {error} ({meaning})"
         if not suspect:
@@ -766,7 +772,7 @@ class _GrblSender(_Sender):
                 self.answered += 1
                 self.ceiling = min(self.ceiling, line.start)
             if not self.stopping:
-                raise _Fault(f"GRBL error {code}{where}: {meaning}")
+                raise _Fault(f"GRBL error {code}{where}: {meaning}", suspect=True)
         elif reply.startswith("ALARM:"):
             code = reply[6:].strip()
             meaning = GRBL_ALARMS.get(int(code), "unknown alarm") if code.isdigit() else "unknown alarm"

@@ -305,7 +305,7 @@ class Worker:
 
             locate = partial(locate_resume, program, device, job.port, pauses_done=job.pauses_done)
             start = start_point(program, device, job.acked_bytes, job.pauses_done,
-                                locate if self.locate else None)
+                                locate if self.locate and not _failed_last(self.store.events(job.id)) else None)
         except FoldfabError as exc:
             return self._end(job, heartbeat, "failed", f"cannot start: {exc}")
         self.ui.job_started(job, start.note)
@@ -352,6 +352,13 @@ class Worker:
                                      "what the next writer decided"
         self.ui.job_ended(job, state, message)
         return state
+
+
+def _failed_last(events) -> bool:
+    """Did the job's last run end ``failed``?  (The plotter reported an error or stalled: an
+    error means it skipped an instruction, so its position is not used to resume.)"""
+    ends = [e.kind for e in events if e.kind in ("failed", "interrupted", "cancelled", "done")]
+    return bool(ends) and ends[-1] == "failed"
 
 
 def stopped_state(stop: StreamStopped) -> str:

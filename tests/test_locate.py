@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from foldfab.devices import load_device
 from foldfab.interpret import GcodeMachine, HPGLMachine, HPGLTokenizer
 from foldfab.progress import JobProgress
-from foldfab.resume import first_undrawn, locate_resume, resume_program
+from foldfab.resume import PlotStopped, first_undrawn, load_state, locate_resume, plot, resume_program
 from foldfab.stream import PenPosition, StreamStopped, locate_pen, stream
 from foldfab.transport import open_port
 from test_resume import FLOWS, job_for, leading_matches
@@ -200,3 +200,34 @@ def test_an_unreachable_plotter_leaves_the_acknowledged_stroke():
     program = fabricated(str(ROOT / "jobs/star.toml"), "hp7475a").program
     stroke, note = locate_resume(program, device, "/dev/nonexistent-plotter", 4, 0)
     assert stroke == 4 and note.startswith("could not ask the plotter where it stopped")
+
+
+@pytest.mark.parametrize("name", ["hp7475a", "grbl"])
+def test_after_a_plotter_error_its_position_is_not_used(name, tmp_path, monkeypatch):
+    """The plotter skipped the instruction it reported, then went on: its position lies past a
+    stroke it did not draw correctly.  The resume starts at the last acknowledged stroke."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
+    device = load_device(name)
+    job = str(ROOT / "jobs/vase-svg.toml")
+    program = fabricated(job, name).program
+    session = f"error{next(_session)}"
+    url = f"sim://?time=instant&sheet=A3&session={session}&reset_on_open=0"
+    with pytest.raises(PlotStopped) as stopped:
+        plot(program, device, job=job, port=f"{url}&error_at=100")
+    assert stopped.value.stop.plotter_error
+    state = load_state(stopped.value.token)
+    assert not state.locate
+    events = []
+    plot(program, device, job=job, port=url, resume=state.token, events=events.append)
+    assert "the plotter reported an error, so where it stopped is not used" in events[0].message
+    assert events[0].message.startswith(f"resuming at stroke {state.stroke + 1} of")
+
+
+def test_a_cancelled_or_cut_plot_may_be_located(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
+    device = load_device("hp7475a")
+    job = str(ROOT / "jobs/vase-svg.toml")
+    program = fabricated(job, "hp7475a").program
+    with pytest.raises(PlotStopped) as stopped:
+        plot(program, device, job=job, port="sim://?time=instant&sheet=A3&disconnect_after=3000")
+    assert not stopped.value.stop.plotter_error and load_state(stopped.value.token).locate

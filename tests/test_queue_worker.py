@@ -516,3 +516,17 @@ def test_flip_answered_on_the_workers_terminal(tmp_path, typed, state):
     kinds = [e.kind for e in store.events(1)]
     assert kinds == (["queued", "started", "pause", "continued", "done"] if state == "done"
                      else ["queued", "started", "pause", "cancelled"])
+
+
+def test_a_job_whose_last_run_failed_is_not_located():
+    """A plotter error means an instruction was skipped: the plotter's position would place the
+    resume past a stroke it did not draw correctly."""
+    from foldfab.queue import Event
+    from foldfab.worker import _failed_last
+
+    def log(*kinds):
+        return [Event(float(i), kind, "") for i, kind in enumerate(kinds)]
+    assert _failed_last(log("queued", "started", "failed", "retried"))
+    assert not _failed_last(log("queued", "started", "failed", "started", "interrupted"))
+    assert not _failed_last(log("queued", "started", "interrupted"))
+    assert not _failed_last(log("queued"))
