@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import http.client
 import json
@@ -328,9 +329,9 @@ def test_error_causes():
 # --- HTTP --------------------------------------------------------------------------------------
 
 
-@pytest.fixture
-def server(studio):
-    server = StudioServer(studio)
+@contextlib.contextmanager
+def serving(server: StudioServer):
+    """``server`` answering in a thread until the block ends."""
     thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
     thread.start()
     try:
@@ -339,6 +340,12 @@ def server(studio):
         server.shutdown()
         server.server_close()
         thread.join(timeout=10)
+
+
+@pytest.fixture
+def server(studio):
+    with serving(StudioServer(studio)) as server:
+        yield server
 
 
 def request(server, method, path, body=b"", headers=None):

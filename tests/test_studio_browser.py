@@ -11,7 +11,6 @@ import json
 import shutil
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ import pytest
 
 from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
+from test_studio_api import serving
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -54,15 +54,8 @@ def folder(tmp_path):
 
 @pytest.fixture
 def server(folder):
-    server = StudioServer(Studio(folder, folder / "hexagon.toml"))
-    thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
-    thread.start()
-    try:
+    with serving(StudioServer(Studio(folder, folder / "hexagon.toml"))) as server:
         yield server
-    finally:
-        server.shutdown()
-        server.server_close()
-        thread.join(timeout=10)
 
 
 @pytest.fixture

@@ -1,7 +1,7 @@
 // The profile view: the profile polyline (u right, v up) and the trajectory seen end-on as a dot.
 // Points are the job's [profile].points; the dot sits at -offset, so dragging it sets [profile].offset.
 
-import { along, bounds, editorView, fmt, nearestHandle, nearestSegment } from "./view2d.js";
+import { along, bounds, editorView, errorPoint, fmt, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
 
 export class ProfileView {
@@ -108,8 +108,7 @@ export class ProfileView {
   }
 
   errorPoint() {
-    const cause = this.studio.error && this.studio.error.cause;
-    return cause && cause.view === "profile" && cause.point !== undefined ? cause.point : -1;
+    return errorPoint(this.studio, "profile");
   }
 
   draw(view, ctx) {

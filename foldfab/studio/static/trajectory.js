@@ -1,7 +1,7 @@
 // The trajectory view, seen from above: templates with their parameters, or a free polyline;
 // the reflection planes dashed, the line elements' paths in grey, the start and travel direction.
 
-import { along, bounds, editorView, nearestHandle, nearestSegment } from "./view2d.js";
+import { along, bounds, editorView, errorPoint, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
 
 const PARAMS = {
@@ -263,8 +263,7 @@ export class TrajectoryView {
   }
 
   errorPoint() {
-    const cause = this.studio.error && this.studio.error.cause;
-    return cause && cause.view === "trajectory" && cause.point !== undefined ? cause.point : -1;
+    return errorPoint(this.studio, "trajectory");
   }
 
   draw(view, ctx) {

@@ -234,6 +234,13 @@ export function bounds(points) {
  * right-click or Delete to remove.  ``editor`` provides draw, hit, drag, add, remove,
  * handleAt and ``selected``; ``onKey`` handles the editor's own extra keys.
  */
+/** The index of the point the studio's error blames in view ``name`` ("profile",
+ * "trajectory"), or -1. */
+export function errorPoint(studio, name) {
+  const cause = studio.error && studio.error.cause;
+  return cause && cause.view === name && cause.point !== undefined ? cause.point : -1;
+}
+
 export function editorView(editor, section, studio, onKey = () => {}) {
   const view = new View2D(section.querySelector("canvas"), {
     draw: (view, ctx) => editor.draw(view, ctx),
