@@ -116,16 +116,20 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
 
 def build_plan(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None) -> PlotPlan:
     """The plot plan of ``design`` on ``device``: placed, layered, optimized, never cropped."""
+    if spec is None:
+        spec = parse_fabrication(design.job.fabrication, str(design.job.path))
+    placement, sheet = place(design, device, spec)
+    return finish_plan(lay_out(design, device, spec, placement, sheet), device, spec)
+
+
+def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placement, sheet) -> PlotPlan:
+    """The layers of ``design`` placed on the sheet, creases chained, in crease-pattern order."""
     import vpype as vp
 
     from foldfab import scoring
-    from foldfab.optimize import optimize_plan
     from foldfab.placement import mirror
 
-    if spec is None:
-        spec = parse_fabrication(design.job.fabrication, str(design.job.path))
     cp = design.crease_pattern
-    placement, sheet = place(design, device, spec)
     creases = {"valley": scoring.crease_lines(cp, "V"), "mountain": scoring.crease_lines(cp, "M")}
     lines = {k: [placement.apply(seg) for seg in v] for k, v in creases.items()}
     lines["cut"] = [placement.apply(loop) for loop in scoring.outline_loops(cp)]
@@ -147,22 +151,40 @@ def build_plan(design: Design, device: DeviceProfile, spec: FabricationSpec | No
         collection.set_property("vp_color", vp.Color(colour))
         doc.add(collection, layer_id, with_metadata=True)
         steps.append(Pass(layer_id, name, device.tool_for(name, spec.layers.get(name), source)))
-    plan = PlotPlan(doc, steps, sheet)
-    park = park_position(device, sheet)
+    return PlotPlan(doc, steps, sheet)
+
+
+def finish_plan(layout: PlotPlan, device: DeviceProfile, spec: FabricationSpec,
+                optimize: str | None = None) -> PlotPlan:
+    """``layout`` optimized (by ``optimize``, default the spec's method) and, for the perforate
+    strategy, its creases cut into dashes.  ``layout`` itself is left as it is."""
+    import vpype as vp
+
+    from foldfab import scoring
+    from foldfab.optimize import optimize_plan
+
+    park = park_position(device, layout.sheet)
     perforated = frozenset(("valley", "mountain")) if spec.strategy == "perforate" else frozenset()
-    plan = optimize_plan(plan, spec.optimize, 1.0 / device.units_per_mm, park, keep_vertices=perforated)
+    plan = optimize_plan(layout, optimize or spec.optimize, 1.0 / device.units_per_mm, park,
+                         keep_vertices=perforated)
+    if not perforated:
+        return plan
+    doc = plan.document.clone()  # metadata only: the layers are added below
     for step in plan.steps:
-        if isinstance(step, Pass) and step.name in perforated:
+        if not isinstance(step, Pass):
+            continue
+        layer = plan.document.layers[step.layer_id]
+        if step.name in perforated:
             # Dashes follow the optimized creases in order; every crease vertex gets its clearance.
-            layer = plan.document.layers[step.layer_id]
             segments = [np.column_stack([line[:-1], line[1:]]) for line in layer]
             dashes = scoring.perforate(np.concatenate(segments) if segments else np.zeros((0, 2), complex),
                                        spec.perforation[step.name], spec.clearance)
-            perforated_layer = vp.LineCollection(list(dashes))
+            dashed = vp.LineCollection(list(dashes))
             for key, value in layer.metadata.items():
-                perforated_layer.set_property(key, value)
-            plan.document.layers[step.layer_id] = perforated_layer
-    return plan
+                dashed.set_property(key, value)
+            layer = dashed
+        doc.add(layer, step.layer_id, with_metadata=True)
+    return PlotPlan(doc, list(plan.steps), plan.sheet)
 
 
 @dataclass(frozen=True)
@@ -175,6 +197,7 @@ class Fabrication:
     program: Any            # foldfab.program.Program
     design: Design
     device: DeviceProfile
+    layout: PlotPlan        # the plan before optimization (for the travel it saves)
 
     @cached_property
     def travel_after(self) -> dict:
@@ -185,14 +208,12 @@ class Fabrication:
 
     @cached_property
     def travel_before(self) -> dict:
-        """Pen-up travel of the same plan unoptimized (built on demand: only reports need it)."""
-        from dataclasses import replace
-
+        """Pen-up travel of the same layers unoptimized (on demand: only reports need it)."""
         from foldfab.optimize import travel
 
         if self.spec.optimize == "none":
             return self.travel_after
-        unoptimized = build_plan(self.design, self.device, replace(self.spec, optimize="none"))
+        unoptimized = finish_plan(self.layout, self.device, self.spec, optimize="none")
         return travel(unoptimized, park_position(self.device, self.plan.sheet))
 
 
@@ -202,9 +223,10 @@ def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | Non
 
     if spec is None:
         spec = parse_fabrication(design.job.fabrication, str(design.job.path))
-    plan = build_plan(design, device, spec)
-    placement, _ = place(design, device, spec)
-    return Fabrication(spec, placement, plan, write_program(plan, device), design, device)
+    placement, sheet = place(design, device, spec)
+    layout = lay_out(design, device, spec, placement, sheet)
+    plan = finish_plan(layout, device, spec)
+    return Fabrication(spec, placement, plan, write_program(plan, device), design, device, layout)
 
 
 def park_position(device: DeviceProfile, sheet: tuple[float, float]) -> complex:
