@@ -2,9 +2,15 @@
 
 The page's bottom-left corner is the origin, x (or the profile's u) runs to the
 right and y (or v) runs up: SVG's y-down user units are flipped and scaled to mm
-with the file's own width/height and viewBox.  Straight segments keep their
-exact end points; curves are sampled by a maximum chord error or, with
-``samples``, by a fixed number of points spaced evenly along the arc.
+with the file's own width/height, viewBox and preserveAspectRatio, by the SVG
+viewBox-to-viewport rules: the page is width x height (a missing one follows
+from the viewBox's aspect ratio; both missing, the viewBox size in px), and the
+viewBox is fitted into it uniformly (``meet``, the default, or ``slice``) at the
+given alignment (default ``xMidYMid``), or stretched with ``none``; without a
+viewBox a user unit is a px.  Nothing is clipped: with ``slice`` a path may
+reach past the page edges.  Straight segments keep their exact end points;
+curves are sampled by a maximum chord error or, with ``samples``, by a fixed
+number of points spaced evenly along the arc.
 """
 
 from __future__ import annotations
@@ -30,10 +36,37 @@ def _length_mm(value: str | None, where: str) -> float | None:
     return float(match.group(1)) * _UNIT_MM[match.group(2).lower()]
 
 
-def _page_transform(root, where: str) -> tuple[float, float, float, float]:
-    """(scale_x, scale_y, min_x, min_y) mapping user units to mm, and the page height in mm."""
+_ALIGN = {f"x{x}Y{y}": (fx, fy) for x, fx in (("Min", 0.0), ("Mid", 0.5), ("Max", 1.0))
+          for y, fy in (("Min", 0.0), ("Mid", 0.5), ("Max", 1.0))}
+
+
+def _aspect(value: str | None, where: str) -> tuple[tuple[float, float] | None, bool]:
+    """preserveAspectRatio as ((x, y) alignment fractions or None for ``none``, slice)."""
+    if value is None:
+        return _ALIGN["xMidYMid"], False
+    words = value.split()
+    if words[:1] == ["defer"]:  # SVG 1.1: only meaningful on <image>, ignored elsewhere
+        words = words[1:]
+    if (1 <= len(words) <= 2 and (words[0] == "none" or words[0] in _ALIGN)
+            and words[1:] in ([], ["meet"], ["slice"])):
+        return _ALIGN.get(words[0]), words[1:] == ["slice"]
+    raise FoldfabError(f"{where}: preserveAspectRatio {value!r} is not an alignment; use none or "
+                       "x(Min|Mid|Max)Y(Min|Mid|Max) such as xMidYMid, optionally followed by meet or slice")
+
+
+def _page_transform(root, where: str) -> tuple[float, float, float, float, float, float]:
+    """(scale_x, scale_y, min_x, bottom, left, base) mapping user units to mm on the page.
+
+    A user point (x, y) lands at ``(left + (x - min_x) * scale_x, base + (bottom - y) * scale_y)``
+    mm: ``min_x`` and ``bottom`` are the viewBox's left and bottom edges (user units) and
+    ``left``/``base`` where those edges land on the page (mm from its left and bottom edges;
+    not 0 when preserveAspectRatio aligns a viewBox of another aspect ratio inside the page).
+    """
     width = _length_mm(root.get("width"), f"{where}: width")
     height = _length_mm(root.get("height"), f"{where}: height")
+    for name, size in (("width", width), ("height", height)):
+        if size is not None and size <= 0:
+            raise FoldfabError(f"{where}: {name} {root.get(name)!r} must be greater than 0")
     view_box = root.get("viewBox")
     if view_box:
         try:
@@ -42,12 +75,25 @@ def _page_transform(root, where: str) -> tuple[float, float, float, float]:
             raise FoldfabError(f"{where}: viewBox {view_box!r} is not four numbers") from None
         if vw <= 0 or vh <= 0:
             raise FoldfabError(f"{where}: viewBox {view_box!r} has no area")
-        sx = width / vw if width else _UNIT_MM["px"]
-        sy = height / vh if height else sx
-        return sx, sy, vx, vy + vh
+        align, slice_ = _aspect(root.get("preserveAspectRatio"), where)
+        if width is None and height is None:
+            width, height = vw * _UNIT_MM["px"], vh * _UNIT_MM["px"]
+        elif width is None:
+            width = height * vw / vh
+        elif height is None:
+            height = width * vh / vw
+        sx, sy = width / vw, height / vh
+        if align is None:  # none: stretch the viewBox onto the page, each axis on its own
+            return sx, sy, vx, vy + vh, 0.0, 0.0
+        scale = max(sx, sy) if slice_ else min(sx, sy)
+        fx, fy = align
+        # SVG aligns y downwards from the page top: YMin puts the viewBox top on the page top.
+        left = fx * (width - vw * scale)
+        base = (1.0 - fy) * (height - vh * scale)
+        return scale, scale, vx, vy + vh, left, base
     unit = _UNIT_MM["px"]
     page_h = height / unit if height else 0.0
-    return unit, unit, 0.0, page_h
+    return unit, unit, 0.0, page_h, 0.0, 0.0
 
 
 def _to_segment(q: complex, p0: complex, p1: complex) -> float:
@@ -120,9 +166,9 @@ def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = Non
         chosen_path = paths[path]
     if not chosen_path.iscontinuous():
         raise FoldfabError(f"{where}: the chosen path of {file} has several pieces (subpaths); use one continuous path")
-    sx, sy, min_x, bottom = _page_transform(root, f"{file}")
+    sx, sy, min_x, bottom, left, base = _page_transform(root, f"{file}")
     pts = _sample(chosen_path, samples, tolerance or DEFAULT_TOLERANCE, max(sx, sy))
-    out = np.column_stack([(pts.real - min_x) * sx, (bottom - pts.imag) * sy])
+    out = np.column_stack([left + (pts.real - min_x) * sx, base + (bottom - pts.imag) * sy])
     keep = np.ones(len(out), bool)
     keep[1:] = np.any(np.abs(np.diff(out, axis=0)) > 1e-12, axis=1)
     return out[keep]

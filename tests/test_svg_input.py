@@ -1,9 +1,10 @@
 """SVG input: one path of an SVG file as a polyline in mm, y up from the page's bottom edge.
 
 Expected coordinates are worked out by hand from the SVG rules (user units are
-px without a viewBox; width/height map the viewBox onto the page; group
-transforms apply), never by calling foldfab's own transform.  Curves are checked
-against a dense svgpathtools sampling converted with the same, hand-written map.
+px without a viewBox; width/height and preserveAspectRatio map the viewBox onto
+the page; group transforms apply), never by calling foldfab's own transform.
+Curves are checked against a dense svgpathtools sampling converted with the
+same, hand-written map.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from svgpathtools import parse_path
 
@@ -78,6 +79,135 @@ def test_example_vase_profile_starts_at_the_bottom(tmp_path):
     np.testing.assert_allclose(pts[-1], [2, 70], atol=1e-9)
     assert len(pts) > 10  # a curve, cut into many chords
     assert np.all(np.diff(pts[:, 1]) > 0)  # the vase rises all the way: v only grows
+
+
+# --------------------------------------------------------------------------- viewport: width/height, preserveAspectRatio
+
+# (svg attributes, three user points, where they land in mm).  The page is width x height; a
+# missing side follows from the viewBox's aspect ratio.  The viewBox is scaled uniformly by
+# min(width/vw, height/vh) (meet, the default) or max (slice) and aligned in the page: xMin at
+# the left edge, xMax at the right; YMin at the page's top edge, YMax at its bottom (y is flipped).
+VIEWPORTS = {
+    "only width: height from the viewBox": (
+        'width="100mm" viewBox="0 0 200 50"', [(0, 50), (200, 0), (50, 40)], [(0, 0), (100, 25), (25, 5)]),
+    "only height: width from the viewBox": (
+        'height="30mm" viewBox="10 0 200 60"', [(10, 60), (210, 0), (110, 30)], [(0, 0), (100, 30), (50, 15)]),
+    "only width in px": (
+        'width="200px" viewBox="0 0 100 50"', [(0, 50), (100, 0), (25, 25)],
+        [(0, 0), (200 * PX, 100 * PX), (50 * PX, 50 * PX)]),
+    "default meet, tall page: centred vertically": (
+        'width="100mm" height="100mm" viewBox="0 0 200 100"', [(0, 100), (200, 0), (100, 50)],
+        [(0, 25), (100, 75), (50, 50)]),
+    "default meet, wide page: centred horizontally": (
+        'width="200mm" height="50mm" viewBox="0 0 100 100"', [(0, 100), (100, 0), (50, 50)],
+        [(75, 0), (125, 50), (100, 25)]),
+    "xMidYMid meet written out": (
+        'width="100mm" height="100mm" viewBox="0 0 200 100" preserveAspectRatio="xMidYMid meet"',
+        [(0, 100), (200, 0), (100, 50)], [(0, 25), (100, 75), (50, 50)]),
+    "xMinYMin meet, tall page: at the top": (
+        'width="100mm" height="100mm" viewBox="0 0 200 100" preserveAspectRatio="xMinYMin meet"',
+        [(0, 100), (200, 0), (100, 50)], [(0, 50), (100, 100), (50, 75)]),
+    "xMinYMin meet, wide page: at the left": (
+        'width="200mm" height="50mm" viewBox="0 0 100 100" preserveAspectRatio="xMinYMin meet"',
+        [(0, 100), (100, 0), (50, 50)], [(0, 0), (50, 50), (25, 25)]),
+    "xMaxYMax (meet implied), wide page: at the right": (
+        'width="200mm" height="50mm" viewBox="0 0 100 100" preserveAspectRatio="xMaxYMax"',
+        [(0, 100), (100, 0), (50, 50)], [(150, 0), (200, 50), (175, 25)]),
+    "xMaxYMid meet with a viewBox origin": (
+        'width="100mm" height="100mm" viewBox="-20 10 50 100" preserveAspectRatio="xMaxYMid meet"',
+        [(-20, 110), (30, 10), (5, 60)], [(50, 0), (100, 100), (75, 50)]),
+    "xMaxYMax slice, tall page: overflows to the left": (
+        'width="100mm" height="100mm" viewBox="0 0 200 100" preserveAspectRatio="xMaxYMax slice"',
+        [(0, 100), (200, 0), (100, 50)], [(-100, 0), (100, 100), (0, 50)]),
+    "xMinYMin slice, wide page: overflows below": (
+        'width="200mm" height="50mm" viewBox="0 0 100 100" preserveAspectRatio="xMinYMin slice"',
+        [(0, 100), (100, 0), (50, 50)], [(0, -150), (200, 50), (100, -50)]),
+    "xMidYMid slice, wide page: overflows both ways": (
+        'width="200mm" height="50mm" viewBox="0 0 100 100" preserveAspectRatio="xMidYMid slice"',
+        [(0, 100), (100, 0), (50, 50)], [(0, -75), (200, 125), (100, 25)]),
+    "none: each axis stretched on its own": (
+        'width="100mm" height="100mm" viewBox="0 0 200 50" preserveAspectRatio="none"',
+        [(0, 50), (200, 0), (100, 25)], [(0, 0), (100, 100), (50, 50)]),
+    "none ignores slice": (
+        'width="100mm" height="100mm" viewBox="0 0 200 50" preserveAspectRatio="none slice"',
+        [(0, 50), (200, 0), (100, 25)], [(0, 0), (100, 100), (50, 50)]),
+    "SVG 1.1 defer is ignored outside <image>": (
+        'width="200mm" height="50mm" viewBox="0 0 100 100" preserveAspectRatio="defer xMinYMin"',
+        [(0, 100), (100, 0), (50, 50)], [(0, 0), (50, 50), (25, 25)]),
+}
+
+
+@pytest.mark.parametrize("attrs, user, expected", VIEWPORTS.values(), ids=VIEWPORTS.keys())
+def test_viewport_sizing_and_preserve_aspect_ratio(tmp_path, attrs, user, expected):
+    d = "M " + " L ".join(f"{float(x)!r} {float(y)!r}" for x, y in user)
+    got = read(write_svg(tmp_path, f'<path d="{d}"/>', attrs))
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("value", ["xmidymid", "XMidYMid", "xMidYMid stretch", "meet", "", "xMidYMid meet slice",
+                                   "none none", "xMidYMid,meet", "defer", "xMidYMax meet defer"])
+def test_bad_preserve_aspect_ratio_names_file_value_and_choices(tmp_path, value):
+    path = write_svg(tmp_path, '<path d="M 0 0 L 1 1"/>',
+                     f'width="100mm" height="50mm" viewBox="0 0 100 50" preserveAspectRatio="{value}"')
+    with pytest.raises(FoldfabError) as info:
+        read(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: preserveAspectRatio {value!r} ")
+    for choice in ("none", "xMidYMid", "x(Min|Mid|Max)Y(Min|Mid|Max)", "meet or slice"):
+        assert choice in message
+    assert "\n" not in message
+
+
+ALIGNMENTS = [f"x{x}Y{y}" for x in ("Min", "Mid", "Max") for y in ("Min", "Mid", "Max")]
+vb_origins = st.floats(-500, 500, allow_nan=False, allow_infinity=False)
+vb_sizes = st.floats(0.5, 500, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(vx=vb_origins, vy=vb_origins, vw=vb_sizes, vh=vb_sizes, width=st.none() | vb_sizes,
+       height=st.none() | vb_sizes, align=st.sampled_from([None, "none"] + ALIGNMENTS),
+       mode=st.sampled_from(["", " meet", " slice"]))
+@example(vx=-3.0, vy=7.0, vw=40.0, vh=10.0, width=30.0, height=30.0, align=None, mode=" slice")  # default: meet
+@example(vx=0.0, vy=0.0, vw=10.0, vh=40.0, width=50.0, height=20.0, align=None, mode="")
+def test_viewbox_centre_and_fit_follow_the_viewport_rules(tmp_path, vx, vy, vw, vh, width, height, align, mode):
+    attrs = f'viewBox="{vx!r} {vy!r} {vw!r} {vh!r}"'
+    attrs += f' width="{width!r}mm"' if width is not None else ""
+    attrs += f' height="{height!r}mm"' if height is not None else ""
+    attrs += f' preserveAspectRatio="{align}{mode}"' if align is not None else ""
+    x1, y1 = vx + vw, vy + vh
+    corners = [(vx, vy), (x1, vy), (x1, y1), (vx, y1)]
+    centre = (vx + vw / 2, vy + vh / 2)
+    d = "M " + " L ".join(f"{x!r} {y!r}" for x, y in corners + [centre])
+    got = read(write_svg(tmp_path, f'<path d="{d}"/>', attrs))
+    assert got.shape == (5, 2)
+    # The page: a missing side follows from the viewBox's aspect ratio; both missing, the viewBox in px.
+    page_w = width if width is not None else height * vw / vh if height is not None else vw * PX
+    page_h = height if height is not None else width * vh / vw if width is not None else vh * PX
+    box = got[:4]
+    left, right = box[:, 0].min(), box[:, 0].max()
+    bottom, top = box[:, 1].min(), box[:, 1].max()
+    if align == "none":  # stretched: the viewBox is the page, its centre the page's centre
+        tol = 1e-9 * max(page_w, page_h)
+        np.testing.assert_allclose(got[4], [page_w / 2, page_h / 2], rtol=0, atol=tol)
+        np.testing.assert_allclose([left, right, bottom, top], [0, page_w, 0, page_h], rtol=0, atol=tol)
+        return
+    slice_ = align is not None and mode == " slice"  # mode is written only with an alignment
+    align = align or "xMidYMid"  # the default: xMidYMid meet
+    s = max(page_w / vw, page_h / vh) if slice_ else min(page_w / vw, page_h / vh)
+    tol = 1e-9 * max(page_w, page_h, s * vw, s * vh)
+    # x: xMin puts the viewBox's left edge on the page's, xMid the centres together, xMax the right edges.
+    cx = {"Min": s * vw / 2, "Mid": page_w / 2, "Max": page_w - s * vw / 2}[align[1:4]]
+    # SVG's y runs down from the page top: YMin puts the viewBox's top edge on the page's top edge.
+    cy_down = {"Min": s * vh / 2, "Mid": page_h / 2, "Max": page_h - s * vh / 2}[align[5:8]]
+    np.testing.assert_allclose(got[4], [cx, page_h - cy_down], rtol=0, atol=tol)
+    # uniform scale: the mapped viewBox is s * (vw, vh)
+    np.testing.assert_allclose([right - left, top - bottom], [s * vw, s * vh], rtol=1e-9)
+    # it fills the page along one axis at least ...
+    assert abs(right - left - page_w) <= tol or abs(top - bottom - page_h) <= tol
+    if slice_:  # ... and covers the whole page
+        assert left <= tol and right >= page_w - tol and bottom <= tol and top >= page_h - tol
+    else:  # ... and fits inside it
+        assert left >= -tol and right <= page_w + tol and bottom >= -tol and top <= page_h + tol
 
 
 # --------------------------------------------------------------------------- transforms
@@ -350,6 +480,9 @@ def test_closed_path_is_one_piece(tmp_path):
     (f'<svg {NS} width="10%" height="5mm"><path d="M 0 0 L 1 1"/></svg>', "unsupported SVG length"),
     (f'<svg {NS} width="10mm" height="5mm" viewBox="0 0 10"><path d="M 0 0 L 1 1"/></svg>', "viewBox"),
     (f'<svg {NS} width="10mm" height="5mm" viewBox="0 0 0 5"><path d="M 0 0 L 1 1"/></svg>', "no area"),
+    (f'<svg {NS} width="0mm" height="5mm" viewBox="0 0 10 5"><path d="M 0 0 L 1 1"/></svg>',
+     "width '0mm' must be greater than 0"),
+    (f'<svg {NS} height="-5mm"><path d="M 0 0 L 1 1"/></svg>', "height '-5mm' must be greater than 0"),
 ])
 def test_unreadable_files(tmp_path, content, match):
     path = tmp_path / "bad.svg"
