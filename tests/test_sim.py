@@ -464,6 +464,30 @@ def test_hpgl_output_instructions_and_device_control():
     assert port.read_until(b"\r") == b"16\r"
 
 
+def test_replies_cross_the_wire_at_the_line_rate():
+    port, g = grbl()
+    port.baudrate = 9600
+    sim, byte = port.simulator, 10 / 9600
+    sim.run_until_idle()
+    port.read(100)  # the banner
+    port.write(b"G21\n")
+    sent = sim.clock.now()  # the line has arrived and is executed at once
+    assert sim.arrived == 0 and sim.out == b"ok\r\n"  # its ok is on the wire
+    port.timeout = 1
+    assert port.read(4) == b"ok\r\n"
+    assert sim.clock.now() == pytest.approx(sent + 4 * byte)
+    port.write(b"?")
+    asked = sim.clock.now()
+    report = port.read_until(b">\r\n")
+    assert report.startswith(b"<Idle|") and sim.clock.now() == pytest.approx(asked + len(report) * byte)
+    # a reply waits for the wire: the status asked right after $$ comes behind its settings
+    port.write(b"$$\n?")
+    sent = sim.clock.now()  # "?" has arrived, one byte after "$$\n"
+    answer = port.read_until(b">\r\n")
+    assert answer.index(b"<Idle|") > answer.index(b"$110=")
+    assert sim.clock.now() == pytest.approx(sent - byte + len(answer) * byte)
+
+
 # --- faults --------------------------------------------------------------------------
 
 

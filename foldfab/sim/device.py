@@ -15,10 +15,13 @@ Timing model
   instruction, or one coordinate pair, at a time, when the previous move has ended;
   GRBL: a line at a time while its planner has room); moves, pen lifts and dwells
   take the durations of :mod:`foldfab.sim.motion` (the estimate's model).
-* Host reads wait in virtual time until a reply exists or their timeout passes;
-  ``real``/``fast`` sleep the wall clock accordingly (never spinning), ``instant``
-  does not sleep at all.  Replies are readable when produced (their wire time is
-  not modelled).
+* Replies cross the wire the other way at the same rate, one byte after another from
+  the moment the device produces them: the host can read a byte once it has arrived
+  (an ``ok`` at 9600 baud comes 4 ms after GRBL sends it, a status report 40 ms).  A
+  host driver that obeys XON/XOFF itself sees them at once.
+* Host reads wait in virtual time until a reply byte has arrived or their timeout
+  passes; ``real``/``fast`` sleep the wall clock accordingly (never spinning),
+  ``instant`` does not sleep at all.
 
 Statistics: busy = moving, lifting, dwelling; an idle interval counts as starvation
 when more bytes arrived after it, as a pause when the device was parked or held, and
@@ -27,6 +30,7 @@ not at all after the end of a program.  See :class:`~foldfab.sim.record.SimStats
 
 from __future__ import annotations
 
+import bisect
 import math
 import re
 from collections import deque
@@ -74,7 +78,9 @@ class Simulator:
         self.t = 0.0  # device time, virtual seconds
         self.rx = bytearray()  # receive buffer
         self.base = 0  # stream offset of rx[0] (buffered bytes only)
-        self.out = bytearray()  # replies the host has not read
+        self.out = bytearray()  # replies the host has not read, arrived or still on the wire
+        self.out_arrival: list[float] = []  # when each byte of ``out`` is through the wire
+        self.reply_wire_free = 0.0  # when the device's next reply byte can start on the wire
         self.planner: deque[Block] = deque()
         self.block_end: float | None = None  # when the running head block ends
         self.remaining: float | None = None  # of the head block, while frozen
@@ -140,16 +146,31 @@ class Simulator:
             self.wire_free = t
         return sent, t
 
+    @property
+    def arrived(self) -> int:
+        """Reply bytes through the wire by device time ``t``: what the host can read."""
+        return bisect.bisect_right(self.out_arrival, self.t)
+
+    def next_arrival(self) -> float:
+        """When the next reply byte still on the wire arrives (inf: none is)."""
+        count = self.arrived
+        return self.out_arrival[count] if count < len(self.out_arrival) else INF
+
     def take_output(self, size: int) -> bytes:
-        """Up to ``size`` reply bytes, removed from the output."""
+        """Up to ``size`` arrived reply bytes, removed from the output."""
+        size = min(size, self.arrived)
         data = bytes(self.out[:size])
-        del self.out[:size]
+        del self.out[:size], self.out_arrival[:size]
         return data
+
+    def discard_arrived(self) -> None:
+        """The host flushes its input: what has arrived goes; bytes on the wire still come."""
+        self.take_output(self.arrived)
 
     def run_until(self, done: Callable[[], bool], deadline: float | None = None) -> bool:
         """Run events until ``done()``; False at ``deadline`` or when nothing more can happen."""
         while not done():
-            te = self.next_event()
+            te = min(self.next_event(), self.next_arrival())
             if te == INF or (deadline is not None and te > deadline):
                 if deadline is not None and deadline > self.t:
                     self.advance(deadline)
@@ -409,12 +430,19 @@ class Simulator:
         else:
             self.stats.xon_sent += 1
         if not self.swallow_flow_bytes:
-            self.out.append(byte)
+            self._send(bytes([byte]))
 
     def reply(self, text: str) -> None:
         """Send ``text`` and the protocol's line terminator (lost when mute or unplugged)."""
         if not self.options.mute and not self.disconnected:
-            self.out += (text + self.TERMINATOR).encode("ascii")
+            self._send((text + self.TERMINATOR).encode("ascii"))
+
+    def _send(self, data: bytes) -> None:
+        """Put reply bytes on the wire to the host, each after the one before."""
+        start = max(self.t, self.reply_wire_free)
+        self.out_arrival.extend(start + self.byte_time * (i + 1) for i in range(len(data)))
+        self.reply_wire_free = start + self.byte_time * len(data)
+        self.out += data
 
     # --- protocol -----------------------------------------------------------------------
 

@@ -65,11 +65,11 @@ def _serve(sim: Simulator, master: int, slave: int, stop: threading.Event) -> No
             del held[:sent]
         sim.advance(now)
         polled = now
-        replies += sim.take_output(len(sim.out))
+        replies += sim.take_output(sim.arrived)
         if replies:
             del replies[:_write(master, replies)]
         wait = min(IDLE_WAIT, clock.wall(sim.byte_time) if held else IDLE_WAIT,
-                   clock.wall(max(0.0, sim.next_event() - now)))
+                   clock.wall(max(0.0, min(sim.next_event(), sim.next_arrival()) - now)))
         select.select([] if held else [master], [master] if replies else [], [],
                       max(wait, MIN_WAIT))
 

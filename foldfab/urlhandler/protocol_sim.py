@@ -143,7 +143,7 @@ class Serial(SerialBase):
                     return
             self._cancel.wait(IDLE_WAIT)  # nothing will ever happen: wait for cancel or close
             return
-        wake = min(sim.next_event(), math.inf if deadline is None else deadline)
+        wake = min(sim.next_event(), sim.next_arrival(), math.inf if deadline is None else deadline)
         self._cancel.wait(min(WALL_STEP, clock.wall(max(0.0, wake - clock.now()))))
         with self._lock:
             self._live()
@@ -152,9 +152,9 @@ class Serial(SerialBase):
     def in_waiting(self) -> int:
         with self._lock:
             sim = self._live()
-            if not sim.out:
+            if not sim.arrived:
                 self._poll(sim)
-            return len(sim.out)
+            return sim.arrived
 
     def read(self, size: int = 1) -> bytes:
         with self._lock:
@@ -166,7 +166,7 @@ class Serial(SerialBase):
             if not data and self._timeout == 0:
                 self._poll(sim)
         while len(data) < size and self._timeout != 0 and not self._cancel.is_set():
-            self._wait(sim, deadline, lambda: bool(sim.out))
+            self._wait(sim, deadline, lambda: sim.arrived > 0)
             with self._lock:
                 data += self._live().take_output(size - len(data))
             if deadline is not None and clock.now() >= deadline:
@@ -210,7 +210,7 @@ class Serial(SerialBase):
 
     def reset_input_buffer(self) -> None:
         with self._lock:
-            self._live().out.clear()
+            self._live().discard_arrived()
 
     def reset_output_buffer(self) -> None:
         with self._lock:
