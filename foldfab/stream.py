@@ -26,7 +26,13 @@ count is exact there; with ``escb`` the buffer is first drained by ``ESC.B`` pol
 which are answered at once, so a hung plotter shows within the stall timeout.
 Between checkpoints the executed count is conservative: ``ESC.B`` gives it exactly at
 each query; the other modes assume a full buffer and the bytes on the wire are still
-to execute.  A question left unanswered (a hang, a stop, a garbled ``ESC.B``) may be
+to execute.  After a stroke that takes the plotter longer to draw than the link takes to
+carry it (by the estimate: the link has time to spare), ``xonxoff``, ``rtscts`` and
+``none`` also send an *inline marker* ``OE;`` and go on sending: its answer, read when
+it comes, says the stroke is executed and error-free, so an error is placed within one
+stroke, the executed count is exact there, and the checkpoint window moves on without
+draining the buffer.  (With ``escb`` the answers of markers and of ``ESC.B`` are both
+bare numbers that could cross, so it has no markers.)  A question left unanswered (a hang, a stop, a garbled ``ESC.B``) may be
 answered late, so the next one first asks ``OI`` (a text answer, unlike the numbers)
 and drops the numbers before it.
 
@@ -42,8 +48,8 @@ before a dwell or ``M`` synchronisation, or before the last :data:`PLANNER_BLOCK
 motion lines; after a stop it is refined by the position where the machine held.
 
 Stopping (the ``cancel`` event, KeyboardInterrupt, a serial fault, a plotter error or a
-stall) stops sending, lifts the tool (HP-GL: the command being sent is finished, then
-``PU;`` and a checkpoint; GRBL: feed hold ``!``, soft reset 0x18, ``$X`` if the reset
+stall) stops sending, lifts the tool (HP-GL: the command being sent is finished, or after
+a plotter error ``ESC.K`` discards what the plotter holds, then ``PU;`` and a checkpoint; GRBL: feed hold ``!``, soft reset 0x18, ``$X`` if the reset
 left an alarm, then the program's own preamble, which lifts the tool) and raises
 :class:`StreamStopped` with the executed byte count a resume can start from.
 
@@ -80,8 +86,9 @@ after the 16th-last motion line may not have moved the machine yet."""
 STATUS_INTERVAL = 0.2
 """At most 5 status queries a second."""
 CHECK_EVERY = 512
-"""HP-GL: bytes between checkpoints (at most one buffer): an HP-GL error is found within
-this many bytes, and a resume after it draws these bytes' strokes again."""
+"""HP-GL: bytes between checkpoints (at most one buffer): without inline markers an
+HP-GL error is found within this many bytes, and a resume after it draws these bytes'
+strokes again."""
 BANNER_WAIT = 2.5
 """Seconds to wait for the GRBL banner (an Arduino boots in about 2 s), before and after
 the soft reset."""
@@ -438,10 +445,18 @@ class _HPGLSender(_Sender):
         self.replies: deque[str] = deque()
         self.unsure = False  # a question went unanswered: its answer may still come
         self.identities = 0  # OI questions not answered yet
+        self.marks: deque[int] = deque()  # program offsets followed by an inline OE; not yet answered
+        self.marked = self.marked_strokes() if self.flow != "escb" else frozenset()
+        """Ends (program offsets) of the strokes an inline marker follows."""
+        self.failed_mark: int | None = None  # what a marker answered instead of 0 (None: garbled)
         self.ends = [i + 1 for i, byte in enumerate(self.data) if byte == ord(";")]
 
     def send_program(self) -> None:
-        for mark in sorted(self.program.pauses, key=lambda p: p.offset):
+        pauses = sorted(self.program.pauses, key=lambda p: p.offset)
+        # the setup, then a checkpoint: its OS clears the "initialized" that IN set (see locate_pen)
+        self.send_until(min([*self.progress.starts[:1], *(p.offset for p in pauses), len(self.data)]))
+        self.checkpoint()
+        for mark in pauses:
             self.send_until(mark.offset)
             self.checkpoint()
             self.ask_operator(mark.message)
@@ -459,6 +474,8 @@ class _HPGLSender(_Sender):
         while self.sent < stop:
             self.check_cancel()
             if self.sent - self.checked >= self.check_every:
+                self.await_marks()
+            if self.sent - self.checked >= self.check_every:
                 self.checkpoint()
             command = self.command_end(self.sent, stop) - self.sent
             if self.flow == "escb":  # several commands per ESC.B question
@@ -466,6 +483,9 @@ class _HPGLSender(_Sender):
             else:
                 need = min(command, self.ahead if self.flow != "none" else self.size - 3)
             room = min(self.room(need), self.checked + self.check_every - self.sent)
+            stroke = bisect.bisect_right(self.progress.ends, self.sent)
+            if stroke < len(self.progress.ends) and self.progress.ends[stroke] in self.marked:
+                room = min(room, self.progress.ends[stroke] - self.sent)  # its marker follows at once
             # as many whole commands as fit; a command longer than the room goes in pieces
             index = bisect.bisect_right(self.ends, min(self.sent + room, stop)) - 1
             end = self.ends[index] if index >= 0 and self.ends[index] > self.sent else self.sent + room
@@ -478,6 +498,9 @@ class _HPGLSender(_Sender):
                     break  # a command is never left half sent (a stop appends PU;)
                 rest = self.command_end(self.sent, stop) - self.sent
                 end = self.sent + min(self.room(rest), rest)
+            if self.sent in self.marked:
+                self.write(b"OE;")
+                self.marks.append(self.sent)
             self.update_acked()
             self.tick()
 
@@ -485,15 +508,21 @@ class _HPGLSender(_Sender):
         """Block until at least ``need`` bytes may be sent; return how many may."""
         if self.flow == "escb":
             return self.escb_room(need)
-        if self.flow == "none":  # one buffer between checkpoints
-            if self.checked + self.size - 3 - self.sent < need:
+        if self.flow == "none":  # one buffer between checkpoints (markers are in it too)
+            free = lambda: self.checked + self.size - 3 - self.sent - 3 * len(self.marks)  # noqa: E731
+            self.receive(wait=False)
+            self.absorb_marks()
+            if free() < need:
+                self.await_marks(lambda: free() >= need)
+            if free() < need:
                 self.checkpoint()
-            return self.checked + self.size - 3 - self.sent
+            return free()
         want = max(min(need, self.ahead), self.ahead // 2)  # no dribbling a byte at a time
         self.alive = time.monotonic()
         while True:
-            if not self.driver_flow:  # else the port's driver holds writes and eats XON/XOFF
+            if not self.driver_flow or self.marks:  # else the port's driver holds writes and eats XON/XOFF
                 self.receive(wait=False)
+            self.absorb_marks()
             held = self.xoff if self.flow == "xonxoff" else not self.clear_to_send()
             if not held:
                 on_wire = self.on_wire()
@@ -556,7 +585,55 @@ class _HPGLSender(_Sender):
             self.acked = max(self.acked, self.sent - self.size - self.ahead)
         self.acked = max(self.acked, self.checked)
 
+    def marked_strokes(self) -> frozenset[int]:
+        """Ends of the strokes the plotter takes longer to draw than the link to carry (with
+        their marker): the link has time to spare for one."""
+        ends, done = self.progress.ends, self.progress.time_done
+        starts = [0, *ends[:-1]]
+        return frozenset(end for k, (start, end) in enumerate(zip(starts, ends))
+                         if done[k + 1] - done[k] > (end - start + 3) * self.char_time)
+
+    def await_marks(self, enough: Callable[[], bool] | None = None) -> None:
+        """Read marker answers until ``enough()`` (default: the checkpoint window has room
+        again) or none is left to come; a plotter that stops answering is stalled."""
+        enough = enough or (lambda: self.sent - self.checked < self.check_every)
+        self.alive = time.monotonic()
+        while self.marks and not enough():
+            limit = self.patience(self.checked, self.sent)
+            if self.stalled(limit):
+                raise _Fault(f"{self.device.name} did not answer OE (output error) within {limit:.0f} s "
+                             "(switched off, hung, line noise, a loose cable, or other serial settings?)")
+            self.receive(wait=True)
+            self.absorb_marks()
+            self.tick()
+
     # -- replies ---------------------------------------------------------------------------
+    def absorb_marks(self) -> None:
+        """Take the answers of inline markers that have come: each says the bytes up to its
+        marker are executed; one that is not 0 is an HP-GL error since the marker before."""
+        self.replies.extend(self.lines())
+        while self.marks and self.replies:
+            line, offset = self.replies.popleft(), self.marks.popleft()
+            error = int(line) if re.fullmatch(r"\d+", line) else None
+            if offset < 0:  # after a failed marker: nothing later counts as executed
+                continue
+            if error == 0:
+                self.acked = max(self.acked, offset)
+                self.checked = max(self.checked, offset)
+                self.alive = time.monotonic()
+                continue
+            self.marks = deque(-1 for _ in self.marks)
+            self.plotter_error, self.failed_mark = True, error
+            if self.stopping:  # already stopping: lift() counts the bytes since the last good marker as not done
+                continue
+            if error is None:
+                raise _Fault(f"{self.device.name} answered OE (output error) with {line!r}, not a number "
+                             "(line noise, or other serial settings?)", suspect=True)
+            meaning = HPGL_ERRORS.get(error, "unknown error")
+            raise _Fault(f"{self.device.name} reports HP-GL error {error} ({meaning}) in program bytes "
+                         f"{self.checked}..{offset} (line noise, or a command it does not take?)",
+                         suspect=True)
+
     def filter(self, data: bytes) -> bytes:
         if XON in data or XOFF in data:
             for byte in data:
@@ -584,9 +661,9 @@ class _HPGLSender(_Sender):
     def answer(self, command: bytes, what: str, timeout: float) -> str:
         """The next reply line; a question without one makes the replies unsure."""
         deadline = time.monotonic() + timeout + self.on_wire() * self.char_time
-        while not self.replies:
-            self.replies.extend(self.lines())
-            if self.replies:
+        while not self.replies or self.marks:  # the answers of inline markers come first
+            self.absorb_marks()
+            if self.replies and not self.marks:
                 break
             if time.monotonic() > deadline:  # its answer may still come: the replies stay unsure
                 if command.startswith(b"\x1b"):  # noise may have made it a device-control
@@ -646,23 +723,34 @@ class _HPGLSender(_Sender):
         self.tick()
 
     def lift(self, suspect: bool) -> str:
-        """Finish the command being sent, then ``PU;`` and a checkpoint."""
-        if suspect:  # where in the last checkpoint's window the error struck is unknown
-            self.acked = self.checked
-        end = self.command_end(max(self.sent - 1, 0), len(self.data))
-        if 0 < self.sent < end and self.data[self.sent - 1] != ord(";"):
-            self.send_until(end)
+        """Finish the command being sent (after a plotter error: abort what the plotter still
+        holds instead), then ``PU;`` and a checkpoint."""
+        if suspect:  # where in the window since the last checkpoint the error struck is unknown:
+            # the resume draws it again, so the plotter need not draw it now; and the stroke that
+            # ends where the window begins too (a pen-up skipped there leaves the pen down, and
+            # the next move extends that stroke)
+            self.acked = max(self.checked - 1, 0)
+            self.write(b"\x1b.K\x1b.K")  # twice: noise may have left it inside an ESC. sequence
+            # markers still held are discarded with the rest; answers of those already executed may
+            # still come: the next question first asks OI and drops the numbers before its answer
+            self.marks.clear()
+            self.unsure = True
+        else:
+            end = self.command_end(max(self.sent - 1, 0), len(self.data))
+            if 0 < self.sent < end and self.data[self.sent - 1] != ord(";"):
+                self.send_until(end)
         try:
             if self.flow in ("xonxoff", "rtscts", "escb"):
                 self.room(3)
         finally:  # a plotter that does not answer still gets the PU; to execute when it can
             self.write(b"PU;")
         error = self.ask(b"OE;", "OE (output error)", self.patience(self.acked, self.sent))[0]
-        if error:  # somewhere since the last checkpoint: those bytes count as not executed
-            self.acked = self.checked
+        if error or self.plotter_error:  # since the last checkpoint or good marker: not executed
+            self.acked = max(self.checked - 1, 0)  # (and the stroke that ends there, as above)
             self.plotter_error = True
-            meaning = HPGL_ERRORS.get(error, "unknown error")
-            return "" if suspect else f"the plotter also reports HP-GL error {error} ({meaning})"
+            code = error or self.failed_mark
+            what = f"HP-GL error {code} ({HPGL_ERRORS.get(code, 'unknown error')})" if code else "a garbled OE answer"
+            return "" if suspect else f"the plotter also reports {what}"
         if not suspect:
             self.acked = self.checked = self.sent
         return ""

@@ -154,6 +154,56 @@ def test_every_job_every_device_draws_the_program(job, name, xonxoff_device):
     assert events[-1].fraction == 1.0 and events[-1].strokes_done == events[-1].strokes_total
 
 
+def marker_offsets(written: bytes, program: bytes) -> list[int]:
+    """Program offsets after which the sender wrote an inline ``OE;`` (checkpoints included),
+    checking that the rest of what it wrote is the program and a setup ``OS;``."""
+    offsets, rest = [], bytearray()
+    for part in re.split(rb"(OE;|OS;)", written):
+        if part == b"OE;":
+            offsets.append(len(rest))
+        elif part != b"OS;":
+            rest += part
+    assert bytes(rest) == program
+    return offsets
+
+
+def fast_motion_profile(folder: Path) -> Path:
+    """The Graphtec with motion so fast that the link is always the bottleneck."""
+    text = (ROOT / "devices" / "graphtec-ce6000.toml").read_text()
+    text = re.sub(r"(?m)^(travel_speed|acceleration) = .*$", r"\1 = 100000000", text)
+    text = re.sub(r"(?m)^pen_lift_time = .*$", "pen_lift_time = 0", text)
+    text = text.replace("speed = [10, 600]", "speed = [10, 100000000]")
+    text = re.sub(r"(?m)^speed = (100|200)$", "speed = 100000000", text)
+    path = folder / "graphtec-fast.toml"
+    path.write_text(text.replace('name = "graphtec-ce6000"', 'name = "graphtec-fast"'))
+    return path
+
+
+@pytest.mark.parametrize("name", ["graphtec-ce6000", "roland-gx24", "xonxoff"])
+def test_an_inline_marker_follows_each_stroke_while_the_link_has_time_to_spare(name, xonxoff_device):
+    device = device_for(name, xonxoff_device)
+    program = fabricated(str(ROOT / "jobs/hexagon-fig8a.toml"), xonxoff_device if name == "xonxoff" else name).program
+    port = sim_port(device, baudrate=FAST_BAUD)
+    run(port, program, device)
+    ends = JobProgress(program, device).ends
+    marked = marker_offsets(bytes(port.written), program.encode())
+    assert set(ends) <= set(marked)  # each stroke's end is confirmed on its own
+    assert len(marked) <= len(ends) + 3  # besides them only the setup's and the last checkpoint
+    assert port.simulator.stats.bytes_lost == 0
+
+
+def test_no_inline_markers_where_the_link_is_the_bottleneck(tmp_path):
+    device = load_device(fast_motion_profile(tmp_path))
+    spec = parse_fabrication({"sheet": "A3", "margin": 5, "scale": 0.4}, "test")
+    program = fabricate(load_design(ROOT / "jobs/vase-svg.toml"), device, spec).program
+    port = sim_port(device, baudrate=9600)
+    run(port, program, device)
+    marked = marker_offsets(bytes(port.written), program.encode())
+    # only checkpoints: the setup, every 512 bytes, the end (markers would cost 3 bytes a stroke)
+    assert len(marked) <= len(program.encode()) // 512 + 3
+    assert np.all(np.diff(marked[1:-1]) >= 400)  # (the last one ends the program)
+
+
 @pytest.mark.parametrize("name", DEVICE_NAMES)
 def test_two_sided_job_pauses_for_the_flip_and_is_answered(name, xonxoff_device):
     """The flip pause is asked once, after everything before it was executed; without an
