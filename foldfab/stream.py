@@ -27,14 +27,17 @@ which are answered at once, so a hung plotter shows within the stall timeout.
 Between checkpoints the executed count is conservative: ``ESC.B`` gives it exactly at
 each query; the other modes assume a full buffer and the bytes on the wire are still
 to execute.  After a stroke that takes the plotter longer to draw than the link takes to
-carry it (by the estimate: the link has time to spare), ``xonxoff``, ``rtscts`` and
-``none`` also send an *inline marker* ``OE;`` and go on sending: its answer, read when
-it comes, says the stroke is executed and error-free, so an error is placed within one
-stroke, the executed count is exact there, and the checkpoint window moves on without
-draining the buffer.  (With ``escb`` the answers of markers and of ``ESC.B`` are both
-bare numbers that could cross, so it has no markers.)  A question left unanswered (a hang, a stop, a garbled ``ESC.B``) may be
-answered late, so the next one first asks ``OI`` (a text answer, unlike the numbers)
-and drops the numbers before it.
+carry it (by the estimate: the link has time to spare), the sender also writes an
+*inline marker* ``OE;`` and goes on sending: its answer, read when it comes, says the
+stroke is executed and error-free, so an error is placed within one stroke, the
+executed count is exact there, and the checkpoint window moves on without draining the
+buffer.  With ``escb`` the answers of markers and of ``ESC.B`` are both bare numbers
+that could cross, so ``ESC.B`` is asked only while no marker is unanswered; meanwhile
+the markers' answers tell the free space (everything written before an answered
+marker has left the buffer), and a plotter silent for the stall timeout is asked
+``ESC.A`` (answered at once, in text) to tell a hung plotter from a slow one.  A question
+left unanswered (a hang, a stop, a garbled ``ESC.B``) may be answered late, so the next
+one first asks ``OI`` (a text answer, unlike the numbers) and drops the numbers before it.
 
 GRBL 1.1 (:class:`_GrblSender`): the ``Grbl 1.1`` banner is awaited; without one after
 :data:`BANNER_WAIT` seconds a soft reset (0x18) provokes it.  Lines go by character
@@ -445,9 +448,14 @@ class _HPGLSender(_Sender):
         self.replies: deque[str] = deque()
         self.unsure = False  # a question went unanswered: its answer may still come
         self.identities = 0  # OI questions not answered yet
-        self.marks: deque[int] = deque()  # program offsets followed by an inline OE; not yet answered
-        self.marked = self.marked_strokes() if self.flow != "escb" else frozenset()
+        self.marks: deque[tuple[int, int]] = deque()
+        """Inline markers not yet answered: (program offset, :attr:`buffered` when written);
+        offset -1 once an earlier marker failed."""
+        self.marked = self.marked_strokes()
         """Ends (program offsets) of the strokes an inline marker follows."""
+        self.buffered = 0  # bytes written into the plotter's buffer (all but ESC. instructions)
+        self.probes = 0  # escb: ESC.A questions (is the plotter there?) not answered yet
+        self.heard = 0.0  # when the plotter last answered a marker or a probe
         self.failed_mark: int | None = None  # what a marker answered instead of 0 (None: garbled)
         self.ends = [i + 1 for i, byte in enumerate(self.data) if byte == ord(";")]
 
@@ -499,8 +507,10 @@ class _HPGLSender(_Sender):
                 rest = self.command_end(self.sent, stop) - self.sent
                 end = self.sent + min(self.room(rest), rest)
             if self.sent in self.marked:
+                self.room(3)
                 self.write(b"OE;")
-                self.marks.append(self.sent)
+                self.credit -= 3
+                self.marks.append((self.sent, self.buffered))
             self.update_acked()
             self.tick()
 
@@ -564,6 +574,9 @@ class _HPGLSender(_Sender):
         """Ask ``ESC.B`` until the plotter reports at least ``need`` bytes free."""
         best, since = -1, time.monotonic()
         while self.credit < need:
+            if self.marks:  # their answers free the space; an ESC.B answer now could pass for one
+                self.await_marks(lambda: self.credit >= need)
+                continue
             self.credit = self.ask(b"\x1b.B", "ESC.B (free buffer space)", self.stall_timeout)[0]
             self.capacity = max(self.capacity, self.credit)
             self.acked = max(self.acked, self.sent - (self.capacity - self.credit))
@@ -597,12 +610,22 @@ class _HPGLSender(_Sender):
         """Read marker answers until ``enough()`` (default: the checkpoint window has room
         again) or none is left to come; a plotter that stops answering is stalled."""
         enough = enough or (lambda: self.sent - self.checked < self.check_every)
-        self.alive = time.monotonic()
+        self.alive = self.heard = time.monotonic()
         while self.marks and not enough():
             limit = self.patience(self.checked, self.sent)
             if self.stalled(limit):
                 raise _Fault(f"{self.device.name} did not answer OE (output error) within {limit:.0f} s "
                              "(switched off, hung, line noise, a loose cable, or other serial settings?)")
+            if self.flow == "escb":  # keep ESC.B's promptness: a hung plotter shows within the stall timeout
+                silent = time.monotonic() - self.heard
+                if self.probes and silent > self.stall_timeout + self.on_wire() * self.char_time:
+                    raise _Fault(f"{self.device.name} did not answer ESC.A (identification) within "
+                                 f"{self.stall_timeout:.0f} s (switched off, hung, line noise, a loose cable, "
+                                 "or other serial settings?)")
+                if not self.probes and silent > self.stall_timeout:
+                    self.write(b"\x1b.A")  # answered at once, in text: never taken for a marker's number
+                    self.probes += 1
+                    self.heard = time.monotonic()
             self.receive(wait=True)
             self.absorb_marks()
             self.tick()
@@ -612,17 +635,23 @@ class _HPGLSender(_Sender):
         """Take the answers of inline markers that have come: each says the bytes up to its
         marker are executed; one that is not 0 is an HP-GL error since the marker before."""
         self.replies.extend(self.lines())
+        while self.probes and any(not line.isdigit() for line in self.replies):
+            self.replies.remove(next(line for line in self.replies if not line.isdigit()))
+            self.probes -= 1
+            self.heard = time.monotonic()
         while self.marks and self.replies:
-            line, offset = self.replies.popleft(), self.marks.popleft()
+            self.heard = time.monotonic()
+            line, (offset, buffered) = self.replies.popleft(), self.marks.popleft()
             error = int(line) if re.fullmatch(r"\d+", line) else None
             if offset < 0:  # after a failed marker: nothing later counts as executed
                 continue
             if error == 0:
                 self.acked = max(self.acked, offset)
                 self.checked = max(self.checked, offset)
+                self.credit = max(self.credit, self.capacity - (self.buffered - buffered))
                 self.alive = time.monotonic()
                 continue
-            self.marks = deque(-1 for _ in self.marks)
+            self.marks = deque((-1, b) for _, b in self.marks)
             self.plotter_error, self.failed_mark = True, error
             if self.stopping:  # already stopping: lift() counts the bytes since the last good marker as not done
                 continue
@@ -633,6 +662,11 @@ class _HPGLSender(_Sender):
             raise _Fault(f"{self.device.name} reports HP-GL error {error} ({meaning}) in program bytes "
                          f"{self.checked}..{offset} (line noise, or a command it does not take?)",
                          suspect=True)
+
+    def write(self, data: bytes) -> None:
+        super().write(data)
+        if not data.startswith(b"\x1b"):  # device-control instructions are never buffered
+            self.buffered += len(data)
 
     def filter(self, data: bytes) -> bytes:
         if XON in data or XOFF in data:

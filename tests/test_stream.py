@@ -156,12 +156,13 @@ def test_every_job_every_device_draws_the_program(job, name, xonxoff_device):
 
 def marker_offsets(written: bytes, program: bytes) -> list[int]:
     """Program offsets after which the sender wrote an inline ``OE;`` (checkpoints included),
-    checking that the rest of what it wrote is the program and a setup ``OS;``."""
+    checking that the rest of what it wrote is the program, a setup ``OS;`` and device-control
+    questions (``ESC.B``)."""
     offsets, rest = [], bytearray()
-    for part in re.split(rb"(OE;|OS;)", written):
+    for part in re.split(rb"(OE;|OS;|\x1b\.B)", written):
         if part == b"OE;":
             offsets.append(len(rest))
-        elif part != b"OS;":
+        elif part not in (b"OS;", b"\x1b.B"):
             rest += part
     assert bytes(rest) == program
     return offsets
@@ -179,7 +180,7 @@ def fast_motion_profile(folder: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("name", ["graphtec-ce6000", "roland-gx24", "xonxoff"])
+@pytest.mark.parametrize("name", ["hp7475a", "graphtec-ce6000", "roland-gx24", "xonxoff"])
 def test_an_inline_marker_follows_each_stroke_while_the_link_has_time_to_spare(name, xonxoff_device):
     device = device_for(name, xonxoff_device)
     program = fabricated(str(ROOT / "jobs/hexagon-fig8a.toml"), xonxoff_device if name == "xonxoff" else name).program
@@ -190,6 +191,11 @@ def test_an_inline_marker_follows_each_stroke_while_the_link_has_time_to_spare(n
     assert set(ends) <= set(marked)  # each stroke's end is confirmed on its own
     assert len(marked) <= len(ends) + 3  # besides them only the setup's and the last checkpoint
     assert port.simulator.stats.bytes_lost == 0
+    if device.buffer.flow_control == "escb":  # no ESC.B while a marker's answer is to come:
+        # only before the setup's checkpoint and while the last one drains the buffer
+        oe = [m.start() for m in re.finditer(rb"OE;", bytes(port.written))]
+        asked = [m.start() for m in re.finditer(rb"\x1b\.B", bytes(port.written))]
+        assert asked and not [a for a in asked if oe[0] < a < oe[-2]]
 
 
 def test_no_inline_markers_where_the_link_is_the_bottleneck(tmp_path):
