@@ -760,10 +760,7 @@ class _HPGLSender(_Sender):
         """Finish the command being sent (after a plotter error: abort what the plotter still
         holds instead), then ``PU;`` and a checkpoint."""
         if suspect:  # where in the window since the last checkpoint the error struck is unknown:
-            # the resume draws it again, so the plotter need not draw it now; and the stroke that
-            # ends where the window begins too (a pen-up skipped there leaves the pen down, and
-            # the next move extends that stroke)
-            self.acked = max(self.checked - 1, 0)
+            self.acked = self.checked  # the resume draws it again, so the plotter need not draw it now
             self.write(b"\x1b.K\x1b.K")  # twice: noise may have left it inside an ESC. sequence
             # markers still held are discarded with the rest; answers of those already executed may
             # still come: the next question first asks OI and drops the numbers before its answer
@@ -780,7 +777,7 @@ class _HPGLSender(_Sender):
             self.write(b"PU;")
         error = self.ask(b"OE;", "OE (output error)", self.patience(self.acked, self.sent))[0]
         if error or self.plotter_error:  # since the last checkpoint or good marker: not executed
-            self.acked = max(self.checked - 1, 0)  # (and the stroke that ends there, as above)
+            self.acked = self.checked
             self.plotter_error = True
             code = error or self.failed_mark
             what = f"HP-GL error {code} ({HPGL_ERRORS.get(code, 'unknown error')})" if code else "a garbled OE answer"

@@ -95,12 +95,16 @@ def test_resume_program_refuses_a_stroke_that_does_not_exist():
 
 
 def leading_matches(drawn, wanted) -> int:
-    """How many strokes at the start of ``drawn`` are exactly the program's."""
+    """How many strokes at the start of ``drawn`` are the program's: exactly, except that the
+    last may go on (an HP-GL error that skips the pen-up after a stroke extends it)."""
     count = 0
     for got, want in zip(drawn, wanted):
-        if got.points.shape != want.points.shape or not np.allclose(got.points, want.points, atol=1e-6):
+        if len(got.points) < len(want.points) or \
+                not np.allclose(got.points[:len(want.points)], want.points, atol=1e-6):
             break
         count += 1
+        if len(got.points) > len(want.points):
+            break
     return count
 
 
@@ -204,10 +208,9 @@ def test_fault_stops_safely_and_the_resume_completes_the_drawing(fault, name, xo
         assert twice <= 1
     elif fault == "error" or (fault == "noise" and not grbl):
         # an inline marker after each stroke places the error in one stroke, and ESC.K stops the
-        # plotter at once: drawn again are that stroke, the one before it (a pen-up skipped at its
-        # end extends it) and the one the abort cut short
+        # plotter at once: drawn again are that stroke and the one the abort cut short
         assert "in program bytes" not in message or stroke_window(message, fab.program, device) == 1
-        assert twice <= 3
+        assert twice <= 2
     elif fault == "disconnect":  # the plotter went on with what it held; foldfab cannot know how far
         window = device.buffer.size + 64 if not grbl else 127
         assert twice <= strokes_in(fab.program, device, 3000 - window - 400, 3000)
