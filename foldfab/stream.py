@@ -31,7 +31,8 @@ carry it (by the estimate: the link has time to spare), the sender also writes a
 *inline marker* ``OE;`` and goes on sending: its answer, read when it comes, says the
 stroke is executed and error-free, so an error is placed within one stroke, the
 executed count is exact there, and the checkpoint window moves on without draining the
-buffer.  With ``escb`` the answers of markers and of ``ESC.B`` are both bare numbers
+buffer; and the sender keeps no more than :data:`LEAD` seconds of work in the plotter
+beyond the stroke it draws, so a stop leaves little to finish.  With ``escb`` the answers of markers and of ``ESC.B`` are both bare numbers
 that could cross, so ``ESC.B`` is asked only while no marker is unanswered; meanwhile
 the markers' answers tell the free space (everything written before an answered
 marker has left the buffer), and a plotter silent for the stall timeout is asked
@@ -92,6 +93,10 @@ CHECK_EVERY = 512
 """HP-GL: bytes between checkpoints (at most one buffer): without inline markers an
 HP-GL error is found within this many bytes, and a resume after it draws these bytes'
 strokes again."""
+LEAD = 1.0
+"""HP-GL with inline markers: seconds of work (by the estimate) the sender lets the plotter
+hold beyond the stroke it is drawing.  Markers tell the moment each stroke is done, so a
+second keeps it busy, and a stop (Ctrl-C, a host that dies) leaves little in its buffer."""
 BANNER_WAIT = 2.5
 """Seconds to wait for the GRBL banner (an Arduino boots in about 2 s), before and after
 the soft reset."""
@@ -485,6 +490,8 @@ class _HPGLSender(_Sender):
                 self.await_marks()
             if self.sent - self.checked >= self.check_every:
                 self.checkpoint()
+            if self.marks and self.queued() > LEAD:
+                self.await_marks(lambda: self.queued() <= LEAD)
             command = self.command_end(self.sent, stop) - self.sent
             if self.flow == "escb":  # several commands per ESC.B question
                 need = min(max(command, self.size // 8), self.size - 3, stop - self.sent)
@@ -605,6 +612,12 @@ class _HPGLSender(_Sender):
         starts = [0, *ends[:-1]]
         return frozenset(end for k, (start, end) in enumerate(zip(starts, ends))
                          if done[k + 1] - done[k] > (end - start + 3) * self.char_time)
+
+    def queued(self) -> float:
+        """Estimated seconds of the strokes sent after the one the plotter is drawing."""
+        done, progress = self.progress.time_done, self.progress
+        last = progress.strokes_done(self.sent)
+        return done[last] - done[min(progress.strokes_done(self.checked) + 1, last)]
 
     def await_marks(self, enough: Callable[[], bool] | None = None) -> None:
         """Read marker answers until ``enough()`` (default: the checkpoint window has room

@@ -23,7 +23,7 @@ from foldfab.errors import FoldfabError
 from foldfab.progress import JobProgress
 from foldfab.resume import (PlotStopped, ResumeState, check_state, load_state, plot, program_hash,
                             resume_program, save_state, state_dir)
-from foldfab.stream import StreamStopped, stream
+from foldfab.stream import LEAD, StreamStopped, stream
 from test_stream import (FAST_BAUD, JOBS, ROOT, device_for, fabricated, same_strokes, sim_port,
                          strokes_of)
 from test_stream import xonxoff_device  # noqa: F401  (a fixture)
@@ -214,6 +214,31 @@ def test_fault_stops_safely_and_the_resume_completes_the_drawing(fault, name, xo
     elif fault == "disconnect":  # the plotter went on with what it held; foldfab cannot know how far
         window = device.buffer.size + 64 if not grbl else 127
         assert twice <= strokes_in(fab.program, device, 3000 - window - 400, 3000)
+
+
+@pytest.mark.parametrize("name", ["escb", "rtscts", "xonxoff", "none"])
+def test_after_a_cancel_the_plotter_finishes_little_more_than_a_second_of_work(name, xonxoff_device):
+    """Inline markers tell when each stroke is done, so the sender keeps at most LEAD seconds of
+    work queued beyond the stroke being drawn: Ctrl-C stops the plotter about that soon."""
+    device, fab = job_for(FLOWS[name], xonxoff_device)
+    port = sim_port(device, "time=instant", baudrate=FAST_BAUD)
+    sim, cancel, cancelled_at = port.simulator, threading.Event(), []
+    write = port._port.write
+
+    def counting(data):
+        if len(port.written) > 3000 and not cancel.is_set():
+            cancel.set()
+            cancelled_at.append(sim.t)
+        return write(data)
+    port._port.write = counting
+    with pytest.raises(StreamStopped):
+        stream(port, fab.program, device, cancel=cancel, operator=lambda m: True)
+    sim.run_until_idle()
+    progress = JobProgress(fab.program, device)
+    creases = [i for i, stroke in enumerate(progress.strokes) if stroke.layer != "cut"]
+    longest = max(progress.time_done[i + 1] - progress.time_done[i] for i in creases)
+    assert sim.stats.last_activity - cancelled_at[0] <= LEAD + 2 * longest
+    assert longest < LEAD  # (so the bound says something: without the lead it is ~10 s here)
 
 
 @pytest.mark.parametrize("name", ["rtscts", "xonxoff", "none"])

@@ -251,8 +251,8 @@ def naive_and_careful(case: str, xonxoff_device: str):
     fab = fabricated(str(ROOT / "jobs/vase-svg.toml"), xonxoff_device if name == "xonxoff" else name)
     # foldfab-honoured XON/XOFF: the port's driver does not handle it (sockets, --no-xonxoff)
     port_flow = {"xonxoff": False} if case == "xonxoff-by-foldfab" else {}
-    if name == "xonxoff":  # a buffer that fills between two checkpoints: XOFF comes
-        device = replace(device, buffer=replace(device.buffer, size=256))
+    if name == "xonxoff":  # a buffer smaller than the second of work foldfab queues: XOFF comes
+        device = replace(device, buffer=replace(device.buffer, size=64))
     return device, fab, port_flow
 
 
