@@ -19,26 +19,27 @@ past a pause:
 A *checkpoint* writes ``OE;`` and waits for the answer.  An output instruction is
 answered only when the plotter reaches it in its buffer, after the moves before it, so
 the round trip drains the buffer with every flow control, and the answer is the error
-register (cleared by reading): 0 means every command since the previous checkpoint
-was understood.  Checkpoints come at pauses, at the end and every :data:`CHECK_EVERY`
-bytes (at most a buffer), so an error is found within that window and the executed
-count is exact there; with ``escb`` the buffer is first drained by ``ESC.B`` polls,
-which are answered at once, so a hung plotter shows within the stall timeout.
-Between checkpoints the executed count is conservative: ``ESC.B`` gives it exactly at
-each query; the other modes assume a full buffer and the bytes on the wire are still
-to execute.  After a stroke that takes the plotter longer to draw than the link takes to
-carry it (by the estimate: the link has time to spare), the sender also writes an
-*inline marker* ``OE;`` and goes on sending: its answer, read when it comes, says the
-stroke is executed and error-free, so an error is placed within one stroke, the
-executed count is exact there, and the checkpoint window moves on without draining the
-buffer; and the sender keeps no more than :data:`LEAD` seconds of work in the plotter
-beyond the stroke it draws, so a stop leaves little to finish.  With ``escb`` the answers of markers and of ``ESC.B`` are both bare numbers
-that could cross, so ``ESC.B`` is asked only while no marker is unanswered; meanwhile
-the markers' answers tell the free space (everything written before an answered
-marker has left the buffer), and a plotter silent for the stall timeout is asked
-``ESC.A`` (answered at once, in text) to tell a hung plotter from a slow one.  A question
-left unanswered (a hang, a stop, a garbled ``ESC.B``) may be answered late, so the next
-one first asks ``OI`` (a text answer, unlike the numbers) and drops the numbers before it.
+register (cleared by reading): 0 means every command since the previous checkpoint was
+understood.  Checkpoints come at pauses, at the end and every :data:`CHECK_EVERY` bytes
+(at most a buffer), so an error is found within that window and the executed count is
+exact there; with ``escb`` the buffer is first drained by ``ESC.B`` polls, which are
+answered at once, so a hung plotter shows within the stall timeout. Between checkpoints
+the executed count is conservative: ``ESC.B`` gives it exactly at each query; the other
+modes assume a full buffer and the bytes on the wire are still to execute.  After a
+stroke that takes the plotter longer to draw than the link takes to carry it (by the
+estimate: the link has time to spare), the sender also writes an *inline marker* ``OE;``
+and goes on sending: its answer, read when it comes, says the stroke is executed and
+error-free, so an error is placed within one stroke, the executed count is exact there,
+and the checkpoint window moves on without draining the buffer; and the sender keeps no
+more than :data:`LEAD` seconds of work in the plotter beyond the stroke it draws, so a
+stop leaves little to finish.  With ``escb`` the answers of markers and of ``ESC.B`` are
+both bare numbers that could cross, so ``ESC.B`` is asked only while no marker is
+unanswered; meanwhile the markers' answers tell the free space (everything written
+before an answered marker has left the buffer), and a plotter silent for the stall
+timeout is asked ``ESC.A`` (answered at once, in text) to tell a hung plotter from a
+slow one.  A question left unanswered (a hang, a stop, a garbled ``ESC.B``) may be
+answered late, so the next one first asks ``OI`` (a text answer, unlike the numbers) and
+drops the numbers before it.
 
 GRBL 1.1 (:class:`_GrblSender`): the ``Grbl 1.1`` banner is awaited; without one after
 :data:`BANNER_WAIT` seconds a soft reset (0x18) provokes it.  Lines go by character
@@ -52,10 +53,11 @@ before a dwell or ``M`` synchronisation, or before the last :data:`PLANNER_BLOCK
 motion lines; after a stop it is refined by the position where the machine held.
 
 Stopping (the ``cancel`` event, KeyboardInterrupt, a serial fault, a plotter error or a
-stall) stops sending, lifts the tool (HP-GL: the command being sent is finished, or after
-a plotter error ``ESC.K`` discards what the plotter holds, then ``PU;`` and a checkpoint; GRBL: feed hold ``!``, soft reset 0x18, ``$X`` if the reset
-left an alarm, then the program's own preamble, which lifts the tool) and raises
-:class:`StreamStopped` with the executed byte count a resume can start from.
+stall) stops sending, lifts the tool (HP-GL: the command being sent is finished, or
+after a plotter error ``ESC.K`` discards what the plotter holds, then ``PU;`` and a
+checkpoint; GRBL: feed hold ``!``, soft reset 0x18, ``$X`` if the reset left an alarm,
+then the program's own preamble, which lifts the tool) and raises :class:`StreamStopped`
+with the executed byte count a resume can start from.
 
 The host waits by blocking reads with a short timeout (:data:`POLL`) or by sleeping
 on the cancel event: it never spins.
@@ -793,7 +795,8 @@ class _HPGLSender(_Sender):
             self.acked = self.checked
             self.plotter_error = True
             code = error or self.failed_mark
-            what = f"HP-GL error {code} ({HPGL_ERRORS.get(code, 'unknown error')})" if code else "a garbled OE answer"
+            what = (f"HP-GL error {code} ({HPGL_ERRORS.get(code, 'unknown error')})" if code
+                    else "a garbled OE answer")
             return "" if suspect else f"the plotter also reports {what}"
         if not suspect:
             self.acked = self.checked = self.sent
