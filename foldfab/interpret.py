@@ -23,7 +23,7 @@ import re
 from array import array
 from dataclasses import dataclass, field
 from itertools import chain
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Iterator
 
 from foldfab.errors import FoldfabError
 
@@ -663,6 +663,29 @@ class GcodeMachine(Machine):
         elif not down:
             self.lift()
         self.is_down = down
+
+
+def pen_states(text: str, protocol: str, device: DeviceProfile) -> Iterator[tuple[int, Machine]]:
+    """(end offset, machine) after each step a plotter takes in program ``text``: an HP-GL
+    coordinate pair or instruction, a G-code line (at least one, even in an empty text).
+    The machine is the same object, updated in place."""
+    frame = device.frame(device.sheet)
+    if protocol == "hpgl":
+        machine = HPGLMachine(device, frame, None)
+        tokenizer = HPGLTokenizer(split_coordinates=True)
+        commands = tokenizer.feed(text.encode("ascii")) + tokenizer.close()
+        for command, end in zip(commands, [c.offset for c in commands[1:]] + [len(text)]):
+            machine.at = command.offset
+            machine.execute(command)
+            yield end, machine
+        return
+    machine = GcodeMachine(device, frame, None)
+    offset = 0
+    for raw in text.split("\n"):
+        end = min(offset + len(raw) + 1, len(text))
+        machine.execute(raw, offset, end)
+        yield end, machine
+        offset = end
 
 
 def _servo_key(command: str) -> tuple[str, float | None]:

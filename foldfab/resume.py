@@ -199,9 +199,11 @@ def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke]
     None if no state matches (the plotter did not run this program: its position says
     nothing).
     """
+    from foldfab.interpret import pen_states
+
     start = strokes[stroke - 1].end if stroke > 0 else 0
     tolerance = 0.5 if program.protocol == "hpgl" else 0.0015  # a plotter unit; GRBL's 3 decimals
-    for end, machine in _pen_states(program.text, program.protocol, device):
+    for end, machine in pen_states(program.text, program.protocol, device):
         if end > limit:
             return None
         down = machine.stroke is not None
@@ -213,31 +215,6 @@ def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke]
             done += 1  # at the last point of the stroke being drawn: it is complete
         return max(done, stroke)
     return None
-
-
-def _pen_states(text: str, protocol: str, device: DeviceProfile):
-    """(end offset, machine) after each step a plotter takes in program ``text``: an HP-GL
-    coordinate pair or instruction, a G-code line (at least one, even in an empty text).
-    The machine is the same object, updated in place."""
-    from foldfab.interpret import GcodeMachine, HPGLMachine, HPGLTokenizer
-
-    frame = device.frame(device.sheet)
-    if protocol == "hpgl":
-        machine = HPGLMachine(device, frame, None)
-        tokenizer = HPGLTokenizer(split_coordinates=True)
-        commands = tokenizer.feed(text.encode("ascii")) + tokenizer.close()
-        for command, end in zip(commands, [c.offset for c in commands[1:]] + [len(text)]):
-            machine.at = command.offset
-            machine.execute(command)
-            yield end, machine
-        return
-    machine = GcodeMachine(device, frame, None)
-    offset = 0
-    for raw in text.split("\n"):
-        end = min(offset + len(raw) + 1, len(text))
-        machine.execute(raw, offset, end)
-        yield end, machine
-        offset = end
 
 
 def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: int,
@@ -295,9 +272,10 @@ def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
                 latest.pop(key, None)
                 latest[key] = text[command.offset:end]
         return "".join(latest.values())
+    from foldfab.interpret import pen_states
     from foldfab.program import fmt_number
 
-    for _, machine in _pen_states(text, "gcode", device):
+    for _, machine in pen_states(text, "gcode", device):
         pass  # to the end of the text: the modes in force there
     if machine.feed is None:
         return "G0\n" if machine.motion == "G0" else ""
