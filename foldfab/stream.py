@@ -32,7 +32,10 @@ and goes on sending: its answer, read when it comes, says the stroke is executed
 error-free, so an error is placed within one stroke, the executed count is exact there,
 and the checkpoint window moves on without draining the buffer; and the sender keeps no
 more than :data:`LEAD` seconds of work in the plotter beyond the stroke it draws, so a
-stop leaves little to finish.  With ``escb`` the answers of markers and of ``ESC.B`` are
+stop leaves little to finish.  Nor does it let the plotter hold a step that leaves the
+pen where an earlier step it may still hold left it (same position, up or down), where
+acknowledgements can wait for that: if the host dies, the pen's position
+(:func:`locate_pen`) then tells exactly how far the plotter got.  With ``escb`` the answers of markers and of ``ESC.B`` are
 both bare numbers that could cross, so ``ESC.B`` is asked only while no marker is
 unanswered; meanwhile the markers' answers tell the free space (everything written
 before an answered marker has left the buffer), and a plotter silent for the stall
@@ -461,6 +464,10 @@ class _HPGLSender(_Sender):
         self.marked = self.marked_strokes()
         """Ends (program offsets) of the strokes an inline marker follows."""
         self.buffered = 0  # bytes written into the plotter's buffer (all but ESC. instructions)
+        self.repeat_ends, self.repeat_before = self.repeated_states() if self.marked else ([], [])
+        """Program offsets after which the pen is where a step before it left it, and that
+        step's offset (see :meth:`repeats_allow`)."""
+        self.repeat_index = 0  # repeats before this one are sent, or not in the way any more
         self.probes = 0  # escb: ESC.A questions (is the plotter there?) not answered yet
         self.heard = 0.0  # when the plotter last answered a marker or a probe
         self.failed_mark: int | None = None  # what a marker answered instead of 0 (None: garbled)
@@ -503,6 +510,12 @@ class _HPGLSender(_Sender):
             stroke = bisect.bisect_right(self.progress.ends, self.sent)
             if stroke < len(self.progress.ends) and self.progress.ends[stroke] in self.marked:
                 room = min(room, self.progress.ends[stroke] - self.sent)  # its marker follows at once
+            if self.marks:  # progress comes stroke by stroke: keep the pen states in flight unique
+                allowed = self.repeats_allow()
+                if allowed <= self.sent:
+                    self.await_marks(lambda: self.repeats_allow() > self.sent)
+                    continue
+                room = min(room, allowed - self.sent)
             # as many whole commands as fit; a command longer than the room goes in pieces
             index = bisect.bisect_right(self.ends, min(self.sent + room, stop)) - 1
             end = self.ends[index] if index >= 0 and self.ends[index] > self.sent else self.sent + room
@@ -614,6 +627,43 @@ class _HPGLSender(_Sender):
         starts = [0, *ends[:-1]]
         return frozenset(end for k, (start, end) in enumerate(zip(starts, ends))
                          if done[k + 1] - done[k] > (end - start + 3) * self.char_time)
+
+    def repeated_states(self) -> tuple[list[int], list[int]]:
+        """The steps of the program that leave the pen (position, up or down) where an earlier
+        step left it: their end offsets, and the end offset of that earlier step."""
+        from foldfab.interpret import pen_states
+
+        last: dict[tuple[int, int, bool], int] = {}
+        ends, before = [], []
+        for end, machine in pen_states(self.program.text, "hpgl", self.device):
+            key = (round(machine.position[0]), round(machine.position[1]), machine.stroke is not None)
+            if key in last:
+                ends.append(end)
+                before.append(last[key])
+            last[key] = end
+        return ends, before
+
+    def repeats_allow(self) -> int:
+        """How far the sender may go before the next step whose pen state repeats one the
+        pen locator's window may still hold (from the end of the last acknowledged stroke,
+        see :func:`foldfab.resume.first_undrawn`).  A repeat that only acknowledging strokes
+        not yet sent could clear (within a stroke of the earlier one) is let through: there
+        the locator takes the earlier state, never a later one."""
+        ends = self.progress.ends
+        start = lambda done: ends[done - 1] if done >= 1 else 0  # noqa: E731
+        window = start(self.progress.strokes_done(self.acked))
+        reachable = start(self.progress.strokes_done(self.sent))
+        k = self.repeat_index  # sent, or their twin out of the window: never in the way again
+        while k < len(self.repeat_ends) and (self.repeat_ends[k] <= self.sent or self.repeat_before[k] < window):
+            k += 1
+        self.repeat_index = k
+        horizon = self.sent + self.check_every  # the sender never gets further ahead than this
+        while k < len(self.repeat_ends) and self.repeat_ends[k] <= horizon:
+            if self.repeat_before[k] >= window and self.repeat_before[k] < reachable:
+                command = bisect.bisect_left(self.ends, self.repeat_ends[k])  # the command holding it
+                return self.ends[command - 1] if command > 0 else 0
+            k += 1
+        return len(self.data)
 
     def queued(self) -> float:
         """Estimated seconds of the strokes sent after the one the plotter is drawing."""

@@ -23,7 +23,7 @@ from foldfab.resume import PlotStopped, first_undrawn, load_state, locate_resume
 from foldfab.stream import PenPosition, StreamStopped, locate_pen, stream
 from foldfab.transport import open_port
 from test_resume import FLOWS, job_for, leading_matches
-from test_stream import FAST_BAUD, JOBS, ROOT, fabricated, strokes_of
+from test_stream import FAST_BAUD, JOBS, ROOT, device_for, fabricated, strokes_of
 from test_stream import xonxoff_device  # noqa: F401  (a fixture)
 
 HPGL_FLOWS = ["escb", "rtscts", "none", "xonxoff"]
@@ -151,9 +151,31 @@ def test_a_replugged_plotter_resumes_at_the_first_stroke_it_did_not_draw(flow, d
             assert len(part) < len(whole) and np.allclose(part, whole[:len(part)])
         assert acked <= located <= complete, "a stroke would be lost"
         index = next(i for i, (_, state, done) in enumerate(table) if state == stop and done == complete)
-        if unique_stop(table, acked, index):
-            assert located == complete, (cut, acked, located, note)  # only the interrupted one again
+        assert unique_stop(table, acked, index)  # the sender kept the pen states in flight unique
+        assert located == complete, (cut, acked, located, note)  # only the interrupted one again
         assert "more stroke(s) after the last acknowledgement" in note, note
+
+
+@pytest.mark.parametrize("flow", HPGL_FLOWS)
+def test_a_replugged_plotter_is_located_exactly_where_its_pen_revisits_points(flow, xonxoff_device):
+    """The star's creases meet at shared vertices, so the same pen state comes back within a few
+    strokes.  With inline markers the sender never lets the plotter hold such a repeat while the
+    earlier one may still be unacknowledged: cut anywhere, the resume starts exactly at the
+    stroke the plotter was drawing."""
+    device = device_for(FLOWS[flow], xonxoff_device)
+    fab = fabricated(str(ROOT / "jobs/star.toml"), xonxoff_device if flow == "xonxoff" else FLOWS[flow])
+    want = strokes_of(fab.program, device)
+    table = states(fab.program, device)
+    repeats = [i for i in range(len(table)) if not unique_stop(table, 0, i)]
+    assert len(repeats) > 10  # the job does revisit points
+    for cut in range(500, len(fab.program.text) - 100, 41):
+        for drain in (False, True):
+            acked, located, plotter, stop, note = replug(device, fab, cut, drain)
+            drawn = plotter.strokes
+            first_run = drawn[:len(drawn) - (len(want) - located)]
+            complete = leading_matches(first_run, want)
+            assert same_points(drawn[len(first_run):], want[located:])
+            assert located == complete, (cut, drain, acked, located, complete, note)
 
 
 def test_a_plotter_switched_off_and_on_is_not_trusted():
