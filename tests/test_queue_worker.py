@@ -390,8 +390,9 @@ def test_worker_killed_mid_job_is_resumed_by_the_next_run(tmp_path):
     expected = sheet_strokes(s.points for s in strokes)
     drawn = sheet_strokes(s["points"] for s in json.loads(record.read_text())["strokes"])
     assert not expected - drawn, "a stroke was lost"
-    # Drawn twice: the stroke the plotter was drawing when the next run stopped it, and more only
-    # where the pen's stop state also occurs earlier in the window (test_locate covers this).
+    # Drawn twice: the stroke the plotter was drawing when the next run stopped it.  The sender keeps
+    # the pen states in flight unique from its last acknowledgement on (test_locate), so more only
+    # where the saved position lagged behind the engine's and the stop state occurs in between.
     acked = bisect.bisect_right([s.end for s in strokes], job.acked_bytes)
     located = int(re.search(r"resumed at stroke (\d+) of", second.stdout).group(1)) - 1
     recorded = [np.array(s["points"]) for s in json.loads(record.read_text())["strokes"]]
