@@ -715,6 +715,8 @@ class _HPGLSender(_Sender):
                 self.checked = max(self.checked, offset)
                 self.credit = max(self.credit, self.capacity - (self.buffered - buffered))
                 self.alive = time.monotonic()
+                if not self.stopping:  # a stroke is done: tell at once (the queue saves it)
+                    self.emit("progress")
                 continue
             self.marks = deque((-1, b) for _, b in self.marks)
             self.plotter_error, self.failed_mark = True, error
