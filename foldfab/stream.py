@@ -293,6 +293,8 @@ class _Sender:
         """Program bytes written."""
         self.acked = 0
         """Program bytes certainly executed."""
+        self.reported = 0
+        """:attr:`acked` as the last progress event gave it (and a queue may have saved)."""
         self.pauses_done = 0
         self.waited = 0.0
         self.started = time.monotonic()
@@ -362,6 +364,7 @@ class _Sender:
     def emit(self, kind: str, message: str = "") -> None:
         self.last_event = time.monotonic()
         self.events(self.progress.event(kind, self.acked, self.sent, self.elapsed, self.waited, message))
+        self.reported = self.acked
 
     def tick(self) -> None:
         """A progress event, at most 10 a second."""
@@ -651,7 +654,7 @@ class _HPGLSender(_Sender):
         the locator takes the earlier state, never a later one."""
         ends = self.progress.ends
         start = lambda done: ends[done - 1] if done >= 1 else 0  # noqa: E731
-        window = start(self.progress.strokes_done(self.acked))
+        window = start(self.progress.strokes_done(self.reported))  # where a resume would look from
         reachable = start(self.progress.strokes_done(self.sent))
         k = self.repeat_index  # sent, or their twin out of the window: never in the way again
         while k < len(self.repeat_ends) and (self.repeat_ends[k] <= self.sent or self.repeat_before[k] < window):

@@ -213,7 +213,7 @@ class _Heartbeat(threading.Thread):
         self._stopped = threading.Event()
 
     def poke(self) -> None:
-        """Save now (a stroke was completed, a pause answered)."""
+        """Save soon (a pause was answered)."""
         self._poke.set()
 
     def run(self) -> None:
@@ -407,14 +407,16 @@ class _Tracker:
         return f"{self.done} of {self.total} strokes done"
 
     def event(self, event: ProgressEvent) -> None:
-        """Record the position; save at once when a stroke was completed."""
+        """Record the position; when a stroke was completed, save it before the engine goes on
+        (it lets the plotter hold repeats of a pen state only past the reported stroke, so the
+        saved one must not lag: see :meth:`foldfab.stream._HPGLSender.repeats_allow`)."""
         self.acked = self.start.original(event.acknowledged)
         done, self.total = self.start.stroke + event.strokes_done, self.start.stroke + event.strokes_total
         self.heartbeat.acked = self.acked
         self.heartbeat.progress = f"stroke {done} of {self.total} done, {event.layer}"
         if done != self.done:
             self.done = done
-            self.heartbeat.poke()
+            self.heartbeat.beat()
         self.worker.ui.progress(event)
 
     def pause(self, message: str) -> bool:
@@ -422,6 +424,7 @@ class _Tracker:
         store, worker, options = self.worker.store, self.worker.id, self.worker.options
         confirmed = self.start.confirmed[self.pauses_seen] if self.pauses_seen < len(self.start.confirmed) else None
         self.pauses_seen += 1
+        self.heartbeat.beat()  # everything before the pause is done: save it before waiting
         control = store.wait_at_pause(self.job.id, worker, message)
         self.worker.ui.paused(self.job, message)
         while not control.lost:
