@@ -236,10 +236,15 @@ def cmd_plot(args: argparse.Namespace) -> int:
         if cancel.is_set() or prompting[0]:
             raise KeyboardInterrupt
         cancel.set()
-        print("\nfoldfab: stopping: finishing the current command and lifting the tool "
-              "(Ctrl-C again to stop waiting)", file=sys.stderr)
+        try:
+            print("\nfoldfab: stopping: finishing the current command and lifting the tool "
+                  "(Ctrl-C again to stop waiting)", file=sys.stderr)
+        except OSError:  # the terminal was closed (SIGHUP)
+            pass
 
-    previous = signal.signal(signal.SIGINT, interrupt)
+    # a kill (SIGTERM) or a closed terminal (SIGHUP) stops as safely as Ctrl-C, and saves the state
+    stops = [s for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    previous = {name: signal.signal(getattr(signal, name), interrupt) for name in stops}
     try:
         plot(fab.program, device, job=args.job, port=port, resume=args.resume, baudrate=args.baud,
              xonxoff=args.xonxoff, rtscts=args.rtscts, events=reporter(sys.stdout, args.json),
@@ -257,7 +262,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
         print(f"foldfab: {kind}: {message}", file=sys.stderr)
         return stop.exit_code
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for name, handler in previous.items():
+            signal.signal(getattr(signal, name), handler)
     return 0
 
 

@@ -110,7 +110,9 @@ def test_resume_refuses_a_changed_job(capsys, tmp_path):
     assert "changed since the plot stopped" in err and "plot the whole job again" in err
 
 
-def test_ctrl_c_stops_safely_exits_130_and_prints_the_resume_command(tmp_path):
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
+def test_ctrl_c_stops_safely_exits_130_and_prints_the_resume_command(sig, tmp_path):
+    """Ctrl-C, a kill (SIGTERM) and a closed terminal (SIGHUP) all stop safely with a resume token."""
     env = dict(os.environ, XDG_STATE_HOME=str(tmp_path / "state"))
     job = tmp_path / "vase.toml"  # a long job: it is still plotting when Ctrl-C comes
     job.write_text((ROOT / "jobs/vase-svg.toml").read_text().replace(
@@ -119,7 +121,7 @@ def test_ctrl_c_stops_safely_exits_130_and_prints_the_resume_command(tmp_path):
                              "--port", "sim://?time=fast"], cwd=ROOT, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     time.sleep(2.5)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(getattr(signal, sig))
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     assert "Traceback" not in err
