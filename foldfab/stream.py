@@ -35,14 +35,14 @@ more than :data:`LEAD` seconds of work in the plotter beyond the stroke it draws
 stop leaves little to finish.  Nor does it let the plotter hold a step that leaves the
 pen where an earlier step it may still hold left it (same position, up or down), where
 acknowledgements can wait for that: if the host dies, the pen's position
-(:func:`locate_pen`) then tells exactly how far the plotter got.  With ``escb`` the answers of markers and of ``ESC.B`` are
-both bare numbers that could cross, so ``ESC.B`` is asked only while no marker is
-unanswered; meanwhile the markers' answers tell the free space (everything written
-before an answered marker has left the buffer), and a plotter silent for the stall
-timeout is asked ``ESC.A`` (answered at once, in text) to tell a hung plotter from a
-slow one.  A question left unanswered (a hang, a stop, a garbled ``ESC.B``) may be
-answered late, so the next one first asks ``OI`` (a text answer, unlike the numbers) and
-drops the numbers before it.
+(:func:`locate_pen`) then tells exactly how far the plotter got.  With ``escb`` the
+answers of markers and of ``ESC.B`` are both bare numbers that could cross, so ``ESC.B``
+is asked only while no marker is unanswered; meanwhile the markers' answers tell the
+free space (everything written before an answered marker has left the buffer), and a
+plotter silent for the stall timeout is asked ``ESC.A`` (answered at once, in text) to
+tell a hung plotter from a slow one.  A question left unanswered (a hang, a stop, a
+garbled ``ESC.B``) may be answered late, so the next one first asks ``OI`` (a text
+answer, unlike the numbers) and drops the numbers before it.
 
 GRBL 1.1 (:class:`_GrblSender`): the ``Grbl 1.1`` banner is awaited; without one after
 :data:`BANNER_WAIT` seconds a soft reset (0x18) provokes it.  Lines go by character
@@ -682,14 +682,11 @@ class _HPGLSender(_Sender):
         while self.marks and not enough():
             limit = self.patience(self.checked, self.sent)
             if self.stalled(limit):
-                raise _Fault(f"{self.device.name} did not answer OE (output error) within {limit:.0f} s "
-                             "(switched off, hung, line noise, a loose cable, or other serial settings?)")
+                raise self.unanswered("OE (output error)", limit)
             if self.flow == "escb":  # keep ESC.B's promptness: a hung plotter shows within the stall timeout
                 silent = time.monotonic() - self.heard
                 if self.probes and silent > self.stall_timeout + self.on_wire() * self.char_time:
-                    raise _Fault(f"{self.device.name} did not answer ESC.A (identification) within "
-                                 f"{self.stall_timeout:.0f} s (switched off, hung, line noise, a loose cable, "
-                                 "or other serial settings?)")
+                    raise self.unanswered("ESC.A (identification)", self.stall_timeout)
                 if not self.probes and silent > self.stall_timeout:
                     self.write(b"\x1b.A")  # answered at once, in text: never taken for a marker's number
                     self.probes += 1
@@ -772,10 +769,14 @@ class _HPGLSender(_Sender):
             if time.monotonic() > deadline:  # its answer may still come: the replies stay unsure
                 if command.startswith(b"\x1b"):  # noise may have made it a device-control
                     self.write(b":")  # instruction that takes parameters: ":" ends it
-                raise _Fault(f"{self.device.name} did not answer {what} within {timeout:.0f} s "
-                             "(switched off, hung, line noise, a loose cable, or other serial settings?)")
+                raise self.unanswered(what, timeout)
             self.receive(wait=True)
         return self.replies.popleft()
+
+    def unanswered(self, what: str, seconds: float) -> _Fault:
+        """The fault of a question the plotter left unanswered for ``seconds``."""
+        return _Fault(f"{self.device.name} did not answer {what} within {seconds:.0f} s "
+                      "(switched off, hung, line noise, a loose cable, or other serial settings?)")
 
     def resync(self, timeout: float) -> None:
         """Ask ``OI`` (identification: text, where every other answer is a number) and drop
