@@ -1,3 +1,3 @@
-from foldfab.cli import main
+from foldfab.cli import run
 
-raise SystemExit(main())
+raise SystemExit(run())

@@ -130,9 +130,9 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
     from foldfab.placement import mirror
 
     cp = design.crease_pattern
-    creases = {"valley": scoring.crease_lines(cp, "V"), "mountain": scoring.crease_lines(cp, "M")}
-    lines = {k: [placement.apply(seg) for seg in v] for k, v in creases.items()}
-    lines["cut"] = [placement.apply(loop) for loop in scoring.outline_loops(cp)]
+    placed = placement.apply(cp.vertices[:, 0] + 1j * cp.vertices[:, 1])
+    lines = {"valley": scoring.crease_lines(cp, "V", placed), "mountain": scoring.crease_lines(cp, "M", placed),
+             "cut": scoring.outline_loops(cp, placed)}
     if spec.strategy == "two-sided":
         flip = (lambda p: mirror(p, sheet[0])) if spec.flip_edge == "left" else \
                (lambda p: p.real + 1j * (sheet[1] - p.imag))
@@ -146,10 +146,9 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
     for name, (layer_id, colour) in LAYERS.items():
         if spec.strategy == "two-sided" and name == "mountain":
             steps.append(Pause(flip_message(spec, device)))
-        collection = vp.LineCollection(lines[name])
-        collection.set_property("vp_name", name)
-        collection.set_property("vp_color", vp.Color(colour))
-        doc.add(collection, layer_id, with_metadata=True)
+        doc.add(lines[name], layer_id)
+        doc.layers[layer_id].set_property("vp_name", name)
+        doc.layers[layer_id].set_property("vp_color", vp.Color(colour))
         steps.append(Pass(layer_id, name, device.tool_for(name, spec.layers.get(name), source)))
     return PlotPlan(doc, steps, sheet)
 

@@ -2,7 +2,8 @@
 
 Within each layer: ``linemerge`` (join lines whose ends meet; skipped when no two
 ends are that close, since scoring has chained the creases already), ``linesort``
-(greedy, or with ``--two-opt``), ``linesimplify`` within the device's resolution,
+(greedy, or with ``--two-opt``; a layer of many thousand lines tile by tile),
+``linesimplify`` within the device's resolution,
 closed outlines relooped to start where the pen arrives, and of the sorted order
 and its reverse the one that enters and leaves the layer by less travel (its last
 line turned round if it then ends nearer the next layer or the park position).  Layers
@@ -28,9 +29,6 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
     layers named in ``keep_vertices`` are not simplified (their vertices matter, e.g.
     crease ends that perforation must spare).
     """
-    import vpype as vp
-    import vpype_cli
-
     if method == "none":
         return plan
     sort = "linesort --two-opt" if method == "two-opt" else "linesort"
@@ -39,25 +37,23 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
     passes = [step for step in plan.steps if isinstance(step, Pass)]
     for index, step in enumerate(passes):
         lines = plan.document.layers[step.layer_id]
-        single = vp.Document()
-        single.add(vp.LineCollection(lines.lines), 1)
-        # vpype's linesort starts from the layer's first line: put the one nearest the pen first.
-        simplify = "" if step.name in keep_vertices else f" linesimplify --tolerance {resolution / 2}"
-        merge = f"linemerge --tolerance {resolution} " if _ends_meet(lines, resolution) else ""
-        out = vpype_cli.execute(f"{merge}{sort}{simplify}", _nearest_first(single, pen))
-        result = out.layers.get(1, vp.LineCollection())
+        result = lines.lines
+        if _ends_meet(lines, resolution):
+            result = _run(f"linemerge --tolerance {resolution}", result)
+        result = _sort(result, sort, pen)
+        if step.name not in keep_vertices:
+            result = _simplify(result, resolution / 2)
         later = [plan.document.layers[p.layer_id] for p in passes[index + 1:]]
         following = next((_entries(layer, resolution) for layer in later if len(layer)), np.array([start]))
         # The sorted order backwards (each line reversed) has the same inner travel: take the
         # direction that arrives and leaves by less.
         candidates = [_end_towards(_reloop(order, pen, resolution), pen, following)
-                      for order in (result, vp.LineCollection([line[::-1] for line in result.lines[::-1]]))]
+                      for order in (result, [line[::-1] for line in result[::-1]])]
         result = min(candidates, key=lambda c: _entry_exit(c, pen, following))
-        for name, value in lines.metadata.items():
-            result.set_property(name, value)
-        doc.add(result, step.layer_id, with_metadata=True)
-        if len(result):
-            pen = result.lines[-1][-1]
+        doc.add(result, step.layer_id)  # one pass over the lines: a LineCollection first would be two
+        doc.layers[step.layer_id].metadata.update(lines.metadata)
+        if result:
+            pen = result[-1][-1]
     return PlotPlan(doc, list(plan.steps), plan.sheet)
 
 
@@ -74,17 +70,93 @@ def _ends_meet(lines, tolerance: float) -> bool:
     return bool(np.any(pairs[:, 0] // 2 != pairs[:, 1] // 2))
 
 
-def _nearest_first(doc, pen: complex):
-    lines = doc.layers[1]
-    if len(lines) > 1:
-        starts = np.array([line[0] for line in lines])
-        ends = np.array([line[-1] for line in lines])
-        dist = np.minimum(np.abs(starts - pen), np.abs(ends - pen))
-        i = int(np.argmin(dist))
-        first = lines.lines[i] if abs(starts[i] - pen) <= abs(ends[i] - pen) else lines.lines[i][::-1]
-        rest = [line for k, line in enumerate(lines.lines) if k != i]
-        lines.lines[:] = [first, *rest]
-    return doc
+def _run(pipeline: str, lines: list[np.ndarray]) -> list[np.ndarray]:
+    """``lines`` through a vpype pipeline."""
+    import vpype as vp
+    import vpype_cli
+
+    doc = vp.Document()
+    doc.add(lines, 1)
+    return vpype_cli.execute(pipeline, doc).layers.get(1, vp.LineCollection()).lines
+
+
+def _sort(lines: list[np.ndarray], command: str, pen: complex) -> list[np.ndarray]:
+    """``lines`` in the order vpype's ``command`` (``linesort``) gives them, from the line
+    nearest ``pen`` on (vpype's sort starts from the first line it is given).
+
+    A layer of more than :data:`TILE_LINES` lines is sorted tile by tile (:func:`_tiles`),
+    each tile from where the pen left the one before.  vpype's line index rebuilds its
+    KD-tree over every remaining line whenever the pen's neighbourhood runs dry, so one
+    sort of a 50,000-line crease layer takes 6 s and in tiles 2.5 s; and a greedy sort kept
+    within a tile leaves no stragglers to come back for across the sheet, so on crease
+    patterns the tiles also travel less (12.3 m against 16.7 m on that layer).
+    """
+    out: list[np.ndarray] = []
+    for tile in _tiles(lines, pen):
+        chosen = [lines[i] for i in tile]
+        if len(chosen) > 1:
+            chosen = _run(command, _nearest_first(chosen, pen))
+        out.extend(chosen)
+        pen = out[-1][-1] if out else pen
+    return out
+
+
+def _simplify(lines: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
+    """vpype's ``linesimplify`` on the lines it could shorten (three points or more), the
+    others left as they are in place: a layer of single crease segments is not sent through
+    shapely and back for nothing (1 s for 50,000 lines)."""
+    bent = [i for i, line in enumerate(lines) if len(line) > 2]
+    if not bent:
+        return lines
+    out = list(lines)
+    # shapely simplifies each line on its own and keeps every one (a collapsed one as two points)
+    for i, line in zip(bent, _run(f"linesimplify --tolerance {tolerance}", [lines[i] for i in bent]), strict=True):
+        out[i] = line
+    return out
+
+
+TILE_LINES = 2000
+"""Lines per tile, on average, when a layer is sorted in tiles (see :func:`_sort`)."""
+
+
+def _tiles(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
+    """Indices of ``lines`` by tile, tiles in the order to visit them.
+
+    Tiles are square cells of a grid over the lines' midpoints, as many as it takes for
+    about :data:`TILE_LINES` lines per cell (but never more than four cells per
+    :data:`TILE_LINES` lines, however thin the layer).  The grid runs in bands across its
+    longer side, visited in serpentine order from the end nearer ``pen``.  One tile for
+    :data:`TILE_LINES` lines or fewer.
+    """
+    count = -(-len(lines) // TILE_LINES)
+    if count <= 1:
+        return [np.arange(len(lines))]
+    mid = np.array([(line[0] + line[-1]) / 2 for line in lines])
+    xy = np.column_stack([mid.real, mid.imag])
+    low = xy.min(axis=0)
+    size = np.maximum(xy.max(axis=0) - low, 1e-9)
+    along = 0 if size[0] >= size[1] else 1
+    bands = min(4 * count, max(1, round(float(np.sqrt(count * size[along] / size[1 - along])))))
+    across = -(-count // bands)
+    cell = ((xy - low) / size).T
+    band = np.minimum((cell[along] * bands).astype(int), bands - 1)
+    step = np.minimum((cell[1 - along] * across).astype(int), across - 1)
+    key = band * across + np.where(band % 2 == 0, step, across - 1 - step)
+    order = np.argsort(key, kind="stable")
+    tiles = np.split(order, np.flatnonzero(np.diff(key[order])) + 1)
+    if abs(mid[tiles[-1]].mean() - pen) < abs(mid[tiles[0]].mean() - pen):
+        tiles.reverse()
+    return tiles
+
+
+def _nearest_first(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
+    """``lines`` with the one whose end is nearest ``pen`` moved first (and turned to start there)."""
+    starts = np.array([line[0] for line in lines])
+    ends = np.array([line[-1] for line in lines])
+    dist = np.minimum(np.abs(starts - pen), np.abs(ends - pen))
+    i = int(np.argmin(dist))
+    first = lines[i] if abs(starts[i] - pen) <= abs(ends[i] - pen) else lines[i][::-1]
+    return [first, *lines[:i], *lines[i + 1:]]
 
 
 def _entries(lines, tolerance: float) -> np.ndarray:
@@ -94,31 +166,31 @@ def _entries(lines, tolerance: float) -> np.ndarray:
                            for line in lines])
 
 
-def _entry_exit(lines, pen: complex, following: np.ndarray) -> float:
+def _entry_exit(lines: list[np.ndarray], pen: complex, following: np.ndarray) -> float:
     """Travel from ``pen`` into ``lines`` and from their end on to the nearest of ``following``,
     plus the travel inside (reloop and the last line's turn change it)."""
-    if not len(lines):
+    if not lines:
         return 0.0
-    inside = float(lines.pen_up_length()[0])
-    return abs(lines.lines[0][0] - pen) + inside + float(np.min(np.abs(following - lines.lines[-1][-1])))
+    starts = np.array([line[0] for line in lines])
+    ends = np.array([line[-1] for line in lines])
+    inside = float(np.abs(starts[1:] - ends[:-1]).sum())
+    return abs(starts[0] - pen) + inside + float(np.min(np.abs(following - ends[-1])))
 
 
-def _end_towards(lines, pen: complex, following: np.ndarray):
+def _end_towards(lines: list[np.ndarray], pen: complex, following: np.ndarray) -> list[np.ndarray]:
     """Reverse the layer's last line if the pen then gets there and on to the nearest of
     ``following`` (the next layer's line ends, or the park position) by less travel."""
-    import vpype as vp
-
-    if not len(lines) or lines.lines[-1][0] == lines.lines[-1][-1]:
+    if not lines or lines[-1][0] == lines[-1][-1]:
         return lines
-    last = lines.lines[-1]
-    before = lines.lines[-2][-1] if len(lines) > 1 else pen
+    last = lines[-1]
+    before = lines[-2][-1] if len(lines) > 1 else pen
     onward = lambda point: float(np.min(np.abs(following - point)))  # noqa: E731
     if abs(before - last[-1]) + onward(last[0]) < abs(before - last[0]) + onward(last[-1]):
-        return vp.LineCollection([*lines.lines[:-1], last[::-1]])
+        return [*lines[:-1], last[::-1]]
     return lines
 
 
-def _reloop(lines, pen: complex, tolerance: float):
+def _reloop(lines: list[np.ndarray], pen: complex, tolerance: float) -> list[np.ndarray]:
     """Start every closed line at the vertex nearest to where the pen comes from."""
     import vpype as vp
 
@@ -128,7 +200,7 @@ def _reloop(lines, pen: complex, tolerance: float):
             line = vp.reloop(line, int(np.argmin(np.abs(line[:-1] - pen))))
         out.append(line)
         pen = line[-1]
-    return vp.LineCollection(out)
+    return out
 
 
 def travel(plan: PlotPlan, park: complex = 0j) -> dict:

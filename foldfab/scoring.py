@@ -12,22 +12,28 @@ import numpy as np
 from foldfab.crease_pattern import CreasePattern
 
 
-def crease_lines(cp: CreasePattern, kind: str) -> list[np.ndarray]:
+def crease_lines(cp: CreasePattern, kind: str, points: np.ndarray | None = None) -> list[np.ndarray]:
     """The creases assigned ``kind`` ("M" or "V") chained into polylines (complex arrays).
 
     Chaining along the crease pattern's own vertex numbering is exact and cheap; vpype's
-    ``linemerge`` then only has the joins between chains left to find.
+    ``linemerge`` then only has the joins between chains left to find.  ``points`` gives
+    each vertex's complex position (default: the crease pattern's own millimetres).
     """
-    return _chains(cp, cp.edges[cp.assignment == kind])
+    return _chains(cp.edges[cp.assignment == kind], _points(cp, points))
 
 
-def outline_loops(cp: CreasePattern) -> list[np.ndarray]:
-    """The border edges chained into closed loops (first point repeated at the end), as complex arrays."""
-    return _chains(cp, cp.edges[cp.assignment == "B"])
+def outline_loops(cp: CreasePattern, points: np.ndarray | None = None) -> list[np.ndarray]:
+    """The border edges chained into closed loops (first point repeated at the end), as complex
+    arrays (``points`` as in :func:`crease_lines`)."""
+    return _chains(cp.edges[cp.assignment == "B"], _points(cp, points))
 
 
-def _chains(cp: CreasePattern, edges: np.ndarray) -> list[np.ndarray]:
-    """``edges`` (E, 2 vertex indices) drawn with as few pen lifts as a graph allows.
+def _points(cp: CreasePattern, points: np.ndarray | None) -> np.ndarray:
+    return cp.vertices[:, 0] + 1j * cp.vertices[:, 1] if points is None else points
+
+
+def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
+    """``edges`` (E, 2 indices into ``points``) drawn with as few pen lifts as a graph allows.
 
     A connected set of edges with ``2k`` vertices of odd degree needs ``k`` strokes (one
     closed loop if ``k`` is 0), and that many suffice (Euler).  Hierholzer's algorithm
@@ -35,32 +41,31 @@ def _chains(cp: CreasePattern, edges: np.ndarray) -> list[np.ndarray]:
     Euler circuits of that graph, cut where they pass the extra vertex, are the strokes.
     Closed loops repeat their first point.  Deterministic (neighbours in index order).
     """
-    pairs = edges.tolist()
-    odd = np.flatnonzero(np.bincount(edges.ravel(), minlength=len(cp.vertices)) % 2).tolist()
-    extra = len(cp.vertices)
-    pairs += [[v, extra] for v in odd]
-    neighbours: dict[int, list[tuple[int, int]]] = {}
-    for index, (a, b) in enumerate(pairs):
-        neighbours.setdefault(a, []).append((b, index))
-        neighbours.setdefault(b, []).append((a, index))
-    for options in neighbours.values():
-        options.sort()
+    count = len(points)
+    odd = np.flatnonzero(np.bincount(edges.ravel(), minlength=count) % 2)
+    extra = count
+    pairs = np.concatenate([edges.reshape(-1, 2), np.column_stack([odd, np.full(len(odd), extra)])])
+    # adjacency lists side by side (CSR): each vertex's neighbours in index order, then by edge
+    ends, others = pairs.T.ravel(), pairs[:, ::-1].T.ravel()
+    ids = np.tile(np.arange(len(pairs)), 2)
+    order = np.lexsort((ids, others, ends))
+    offsets = np.searchsorted(ends[order], np.arange(count + 2))
+    neighbour, edge = others[order].tolist(), ids[order].tolist()
+    cursor, stop = offsets[:-1].tolist(), offsets[1:].tolist()
     used = [False] * len(pairs)
-    cursor = dict.fromkeys(neighbours, 0)
-    points = cp.vertices[:, 0] + 1j * cp.vertices[:, 1]
     walks: list[list[int]] = []
-    starts = ([extra] if odd else []) + sorted(min(a, b) for a, b in edges.tolist())
+    starts = ([extra] if len(odd) else []) + np.sort(edges.min(axis=1)).tolist()
     for start in starts:
         circuit, stack = [], [start]
         while stack:  # Hierholzer: extend the walk; at a dead end, emit the vertex and back up
             v = stack[-1]
-            options, i = neighbours[v], cursor[v]
-            while i < len(options) and used[options[i][1]]:
+            i, last = cursor[v], stop[v]
+            while i < last and used[edge[i]]:
                 i += 1
             cursor[v] = i
-            if i < len(options):
-                used[options[i][1]] = True
-                stack.append(options[i][0])
+            if i < last:
+                used[edge[i]] = True
+                stack.append(neighbour[i])
             else:
                 circuit.append(stack.pop())
         piece: list[int] = []

@@ -6,13 +6,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.fabrication import fabricate, parse_fabrication
 from foldfab.interpret import interpret
-from foldfab.scoring import crease_lines, outline_loops
+from foldfab.scoring import _chains, crease_lines, outline_loops
 
 ROOT = Path(__file__).resolve().parent.parent
 JOBS = sorted((ROOT / "jobs").glob("*.toml"))
@@ -40,6 +42,38 @@ def test_chained_creases_and_outline_cover_every_edge_once(job):
     assert all(loop[0] == loop[-1] for loop in loops)
     walked = [(loop[i], loop[i + 1]) for loop in loops for i in range(len(loop) - 1)]
     assert pairs(walked) == pairs(crease_segments(cp, "B"))
+
+
+def _components(edges: list[tuple[int, int]]) -> dict[int, list[tuple[int, int]]]:
+    """Edges by connected component (union-find), keyed by a root vertex."""
+    root: dict[int, int] = {}
+
+    def find(v: int) -> int:
+        while root.setdefault(v, v) != v:
+            v = root[v]
+        return v
+    for a, b in edges:
+        root[find(a)] = find(b)
+    groups: dict[int, list[tuple[int, int]]] = {}
+    for a, b in edges:
+        groups.setdefault(find(a), []).append((a, b))
+    return groups
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 11), st.integers(0, 11)).filter(lambda e: e[0] != e[1]), max_size=40))
+def test_chains_walk_every_edge_once_with_the_fewest_strokes(edges):
+    """Euler: a connected set of edges with 2k odd vertices takes k strokes (one loop if k is 0)."""
+    points = np.arange(12) * (1 + 0.37j)  # distinct points, so a stroke's points name its vertices
+    lines = _chains(np.array(edges, dtype=np.intp).reshape(-1, 2), points)
+    walked = sorted(tuple(sorted((int(round(a.real)), int(round(b.real)))))
+                    for line in lines for a, b in zip(line[:-1], line[1:]))
+    assert walked == sorted(tuple(sorted(e)) for e in edges)
+    fewest = 0
+    for group in _components(edges).values():
+        odd = np.count_nonzero(np.bincount(np.ravel(group), minlength=12) % 2)
+        fewest += max(1, odd // 2)
+    assert len(lines) == fewest
 
 
 def spec(**kw):

@@ -1,0 +1,109 @@
+"""Layer optimization helpers (foldfab.optimize): tiled sorting of large layers, simplification
+of only the lines that can change."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from foldfab import optimize
+from foldfab.design import build_design
+from foldfab.job import parse_job
+from foldfab.optimize import _run, _simplify, _sort, _tiles
+from foldfab.scoring import crease_lines
+
+
+def pen_up(lines: list[np.ndarray], pen: complex) -> float:
+    """Travel from ``pen`` through ``lines`` in order."""
+    starts = np.array([line[0] for line in lines])
+    ends = np.array([line[-1] for line in lines])
+    return abs(starts[0] - pen) + float(np.abs(starts[1:] - ends[:-1]).sum())
+
+
+def canonical(line: np.ndarray) -> tuple:
+    """A line and its reverse give the same key."""
+    forward = tuple((p.real, p.imag) for p in line)
+    return min(forward, forward[::-1])
+
+
+coordinate = st.floats(-500, 500, allow_nan=False).map(lambda v: round(v, 3))
+point = st.builds(complex, coordinate, coordinate)
+line = st.lists(point, min_size=2, max_size=5).map(lambda p: np.array(p, dtype=complex))
+
+
+@settings(max_examples=60, deadline=None)
+@given(lines=st.lists(line, max_size=60), tile=st.integers(1, 9), pen=point)
+def test_tiled_sort_draws_every_line_once_as_it_was_or_reversed(lines, tile, pen):
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(optimize, "TILE_LINES", tile)
+        tiles = _tiles(lines, pen)
+        out = _sort(lines, "linesort", pen)
+    assert sorted(np.concatenate(tiles).tolist()) == list(range(len(lines)))
+    assert sorted(map(canonical, out)) == sorted(map(canonical, lines))
+
+
+def test_tiles_run_from_the_pen_and_each_borders_the_next():
+    rng = np.random.default_rng(3)
+    starts = rng.random(3000) * 600 + 1j * rng.random(3000) * 200  # a sheet three times as long as high
+    lines = [np.array([a, a + 2 + 1j]) for a in starts]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(optimize, "TILE_LINES", 100)
+        tiles = _tiles(lines, 0j)
+        backwards = _tiles(lines, 600 + 200j)
+    centres = np.array([np.mean([lines[i][0] for i in tile]) for tile in tiles])
+    assert len(tiles) >= 30
+    cell = np.sqrt(600 * 200 / len(tiles))  # the side of a square cell
+    assert abs(centres[0]) < 2 * cell  # the first tile is the corner the pen is at
+    assert np.abs(np.diff(centres)).max() < 1.6 * cell  # serpentine: the next tile is a neighbour
+    assert [t.tolist() for t in backwards] == [t.tolist() for t in tiles[::-1]]
+
+
+def test_a_layer_within_one_tile_is_exactly_vpypes_sort():
+    rng = np.random.default_rng(5)
+    lines = [np.array(p) for p in (rng.random((500, 2)) * 100) @ np.array([1, 1j])[:, None] + np.array([0, 3])]
+    assert len(_tiles(lines, 7j)) == 1
+    out = _sort(lines, "linesort", 7j)
+    nearest = min(range(len(lines)), key=lambda i: min(abs(lines[i][0] - 7j), abs(lines[i][-1] - 7j)))
+    expected = _run("linesort", [lines[nearest], *lines[:nearest], *lines[nearest + 1:]])
+    assert [a.tolist() for a in out] == [a.tolist() for a in expected]
+
+
+@pytest.mark.parametrize("points, corners", [(201, 60), (301, 40), (501, 30)])
+def test_tiles_travel_less_than_one_vpype_sort_on_a_long_crease_pattern(points, corners):
+    """On crease patterns (strips of parallel creases) the greedy sort of a whole layer leaves
+    stragglers behind; sorted tile by tile it does not."""
+    profile = ", ".join(f"[{0.3 * (i % 2)}, {0.5 * i:.2f}]" for i in range(points))
+    job = parse_job(f"[profile]\npoints = [{profile}]\n[trajectory]\ntemplate = \"regular\"\n"
+                    f"corners = {corners}\nradius = 2000\n")
+    lines = crease_lines(build_design(job, check_penetration=False).crease_pattern, "V")
+    assert len(lines) > optimize.TILE_LINES
+    whole = _run("linesort", lines)
+    assert pen_up(_sort(lines, "linesort", lines[0][0]), lines[0][0]) < pen_up(whole, lines[0][0])
+
+
+def test_simplify_sends_only_bent_lines_to_vpype_and_keeps_the_order():
+    straight = [np.array([0, 10]), np.array([20j, 30j])]
+    bent = [np.array([0, 5 + 1e-4j, 10, 10 + 10j]), np.array([1 + 1j, 2 + 2j, 3 + 3j])]
+    lines = [straight[0], bent[0], straight[1], bent[1]]
+    out = _simplify(lines, 0.01)
+    assert out[0] is straight[0] and out[2] is straight[1]  # not converted at all
+    assert [p.tolist() for p in (out[1], out[3])] == [[0, 10, 10 + 10j], [1 + 1j, 3 + 3j]]
+    assert [p.tolist() for p in out] == [p.tolist() for p in _run("linesimplify --tolerance 0.01", lines)]
+
+
+def test_each_tile_starts_at_the_line_nearest_where_the_last_one_ended():
+    rng = np.random.default_rng(8)
+    starts = rng.random(800) * 300 + 1j * rng.random(800) * 300
+    lines = [np.array([a, a + 3 - 2j]) for a in starts]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(optimize, "TILE_LINES", 100)
+        tiles = _tiles(lines, 0j)
+        out = _sort(lines, "linesort", 0j)
+    first = np.cumsum([0] + [len(t) for t in tiles[:-1]])
+    assert len(tiles) > 4
+    for tile, at in zip(tiles, first):
+        pen = out[at - 1][-1] if at else 0j
+        ends = np.array([[lines[i][0], lines[i][-1]] for i in tile])
+        assert abs(out[at][0] - pen) == pytest.approx(np.abs(ends - pen).min())
