@@ -52,10 +52,13 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
         if tool.speed != speed:
             out.write(f"VS{fmt_number(tool.speed / 10, SPEED_DECIMALS[device.dialect])};")
             speed = tool.speed
+        # one rounding and one conversion to Python ints for the whole sweep, then slices
+        units = np.rint(np.concatenate(item.lines)).astype(np.int64).ravel().tolist()
+        start = 0
         for line in item.lines:
-            units = np.rint(line).astype(np.int64)
-            x, y = units[0]
-            rest = ",".join(map(str, units[1:].ravel().tolist()))
-            out.write(f"PU{x},{y};PD{rest};")
+            end = start + 2 * len(line)
+            rest = ",".join(map(str, units[start + 2:end]))
+            out.write(f"PU{units[start]},{units[start + 1]};PD{rest};")
+            start = end
     out.write(park)
     return out.build()

@@ -23,7 +23,7 @@ import re
 from array import array
 from dataclasses import dataclass, field
 from itertools import chain
-from typing import TYPE_CHECKING, Iterator
+from typing import TYPE_CHECKING, Iterator, NamedTuple
 
 from foldfab.errors import FoldfabError
 
@@ -53,11 +53,14 @@ _PLAIN_COMMAND = re.compile(_IDLE_SKIP + rb"(?![Ll][Bb])([A-Za-z]{2})"
                             rb"(?:(-?\d++(?:,-?\d++)*+)|(" + _PLAIN.encode() + rb"))"
                             rb"(?:;|(?=[^0-9+\-.,\s]))")
 _SKIP = re.compile(_IDLE_SKIP)
+_NAMES: dict[bytes, str] = {}  # mnemonic bytes as read -> upper-case name
 
 
-@dataclass(frozen=True)
-class HPGLCommand:
-    """One HP-GL instruction: ``name`` is "PU", "SP"..., "LB", or "ESC.B" for device control."""
+class HPGLCommand(NamedTuple):
+    """One HP-GL instruction: ``name`` is "PU", "SP"..., "LB", or "ESC.B" for device control.
+
+    A named tuple rather than a frozen dataclass: a program of 100,000 strokes is 200,000
+    of them, and a tuple is made in half the time."""
 
     name: str
     params: tuple[float, ...]
@@ -178,12 +181,13 @@ class HPGLTokenizer:
         parameters with an error and a command not ended yet in ``data`` are left to it).
         """
         match, offset = _PLAIN_COMMAND.match, self.offset
-        split = self._split
+        split, names = self._split, _NAMES
         while (found := match(data, i)) is not None:
             i = found.end()
-            name = found[1].upper().decode()
-            group = 2 if found[2] is not None else 3
-            params = found[group]
+            mnemonic, integers, plain = found.groups()
+            name = names.get(mnemonic) or names.setdefault(mnemonic, mnemonic.upper().decode())
+            group = 2 if integers is not None else 3
+            params = integers if integers is not None else plain
             if split and name in COORDINATE_COMMANDS:
                 self._name, self._start, self._part = name, offset + found.start(1), 0
                 self._pending += params

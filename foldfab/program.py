@@ -20,6 +20,7 @@ expands ``passes`` and inserts tool-change pauses for devices without a pen chan
 from __future__ import annotations
 
 import bisect
+from operator import attrgetter
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Union
 
@@ -69,7 +70,7 @@ class Program:
 
     def section_at(self, offset: int) -> Section | None:
         """The section containing byte ``offset``, or None before the first one."""
-        index = bisect.bisect_right([s.offset for s in self.sections], offset) - 1
+        index = bisect.bisect_right(self.sections, offset, key=attrgetter("offset")) - 1
         return self.sections[index] if index >= 0 else None
 
 
