@@ -186,8 +186,7 @@ class HPGLTokenizer:
             i = found.end()
             mnemonic, integers, plain = found.groups()
             name = names.get(mnemonic) or names.setdefault(mnemonic, mnemonic.upper().decode())
-            group = 2 if integers is not None else 3
-            params = integers if integers is not None else plain
+            group, params = (2, integers) if integers is not None else (3, plain)
             if split and name in COORDINATE_COMMANDS:
                 self._name, self._start, self._part = name, offset + found.start(1), 0
                 self._pending += params

@@ -20,8 +20,8 @@ expands ``passes`` and inserts tool-change pauses for devices without a pen chan
 from __future__ import annotations
 
 import bisect
-from operator import attrgetter
 from dataclasses import dataclass
+from operator import attrgetter
 from typing import TYPE_CHECKING, Union
 
 from foldfab.errors import FoldfabError
