@@ -52,6 +52,9 @@ from typing import TYPE_CHECKING, Any, Mapping
 from foldfab.errors import FoldfabError
 from foldfab.plan import Tool
 
+GCODE_DECIMALS = 3
+"""Decimals of the millimetre coordinates in G-code (GRBL takes more; a micrometre is plenty)."""
+
 if TYPE_CHECKING:
     import numpy as np
 
@@ -215,6 +218,13 @@ class DeviceProfile:
     gcode: GcodeSettings | None
     layers: Mapping[str, LayerDefaults]
     source: str
+
+    @property
+    def resolution(self) -> float:
+        """The smallest step a program for this device expresses, mm: one plotter unit in
+        HP-GL, the last of the :data:`GCODE_DECIMALS` decimals G-code coordinates are written with.
+        Optimization merges and simplifies within it, so the program moves nothing further."""
+        return 1.0 / self.units_per_mm if self.protocol == "hpgl" else 10.0 ** -GCODE_DECIMALS
 
     @property
     def language(self) -> Dialect:

@@ -164,7 +164,7 @@ def finish_plan(layout: PlotPlan, device: DeviceProfile, spec: FabricationSpec,
 
     park = park_position(device, layout.sheet)
     perforated = frozenset(("valley", "mountain")) if spec.strategy == "perforate" else frozenset()
-    plan = optimize_plan(layout, optimize or spec.optimize, 1.0 / device.units_per_mm, park,
+    plan = optimize_plan(layout, optimize or spec.optimize, device.resolution, park,
                          keep_vertices=perforated)
     if not perforated:
         return plan

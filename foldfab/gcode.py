@@ -21,6 +21,7 @@ from __future__ import annotations
 import textwrap
 from typing import TYPE_CHECKING
 
+from foldfab.devices import GCODE_DECIMALS
 from foldfab.errors import FoldfabError
 from foldfab.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps
 
@@ -116,7 +117,7 @@ class _GcodeWriter:
 
     def park(self) -> None:
         self.pen_up()
-        self.travel(tuple(fmt_number(v, 3) for v in self.device.motion.park))
+        self.travel(tuple(fmt_number(v, GCODE_DECIMALS) for v in self.device.motion.park))
 
     def sweep(self, sweep: Sweep) -> None:
         self.builder.start(sweep)
@@ -131,7 +132,7 @@ class _GcodeWriter:
         down = self.device.layers[sweep.name].pen_down
         feed = sweep.tool.speed * 60
         for line in sweep.lines:
-            points = [(fmt_number(x, 3), fmt_number(y, 3)) for x, y in line.tolist()]
+            points = [(fmt_number(x, GCODE_DECIMALS), fmt_number(y, GCODE_DECIMALS)) for x, y in line.tolist()]
             self.travel(points[0])
             self.pen_down(down)
             for x, y in points[1:]:

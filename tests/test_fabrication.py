@@ -118,7 +118,7 @@ def test_round_trip_every_job_every_device(job, device_name):
     device = load_device(device_name)
     fab = fabricate(design, device, spec())
     run = interpret(fab.program, device, fab.plan.sheet)
-    tol = 1.0 / device.units_per_mm + 1e-9 + 0.5 / device.units_per_mm  # rounding + simplification bound
+    tol = 1.5 * device.resolution + 1e-9  # rounding + simplification bound (one unit: 0.001 mm in G-code)
     for layer in ("valley", "mountain", "cut"):
         want = expected_segments(design, fab.placement, layer)
         got = stroke_segments(run, layer)
@@ -179,7 +179,7 @@ def test_two_sided_mountains_are_the_exact_mirror():
     front = fab.placement.apply(crease_segments(design.crease_pattern, "M"))
     back = stroke_segments(run, "mountain")
     unmirrored = (width - back.real) + 1j * back.imag
-    tol = 1.5 / device.units_per_mm
+    tol = 1.5 * device.resolution + 1e-9
     assert _dist_to_segments(_samples(front), unmirrored).max() <= tol
     assert _dist_to_segments(_samples(unmirrored), front).max() <= tol
     # valleys stay on the front, unmirrored
