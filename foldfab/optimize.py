@@ -41,15 +41,14 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
         if _ends_meet(lines, resolution):
             result = _run(f"linemerge --tolerance {resolution}", result)
         result = _sort(result, sort, pen)
-        if step.name not in keep_vertices:
-            result = _simplify(result, resolution / 2)
-        later = [plan.document.layers[p.layer_id] for p in passes[index + 1:]]
-        following = next((_entries(layer, resolution) for layer in later if len(layer)), np.array([start]))
+        onward = _onward([plan.document.layers[p.layer_id] for p in passes[index + 1:]], start, resolution)
         # The sorted order backwards (each line reversed) has the same inner travel: take the
         # direction that arrives and leaves by less.
-        candidates = [_end_towards(_reloop(order, pen, resolution), pen, following)
+        candidates = [_end_towards(_reloop(order, pen, resolution, onward), pen, onward)
                       for order in (result, [line[::-1] for line in result[::-1]])]
-        result = min(candidates, key=lambda c: _entry_exit(c, pen, following))
+        result = min(candidates, key=lambda c: _entry_exit(c, pen, onward))
+        if step.name not in keep_vertices:  # last: simplifying keeps the ends of every line
+            result = _simplify(result, resolution / 2)
         doc.add(result, step.layer_id)  # one pass over the lines: a LineCollection first would be two
         doc.layers[step.layer_id].metadata.update(lines.metadata)
         if result:
@@ -166,38 +165,82 @@ def _entries(lines, tolerance: float) -> np.ndarray:
                            for line in lines])
 
 
-def _entry_exit(lines: list[np.ndarray], pen: complex, following: np.ndarray) -> float:
-    """Travel from ``pen`` into ``lines`` and from their end on to the nearest of ``following``,
-    plus the travel inside (reloop and the last line's turn change it)."""
+class _Onward:
+    """The pen-up travel still to come once the pen leaves a layer, by where it leaves: the
+    shortest way to one of ``targets`` plus that target's ``extra`` (none: the nearest)."""
+
+    def __init__(self, targets: np.ndarray, extra: np.ndarray | None = None):
+        from scipy.spatial import cKDTree  # vpype's line index is built on it
+
+        self.targets, self.extra = targets, extra
+        self.index = cKDTree(np.column_stack([targets.real, targets.imag])) if extra is None else None
+
+    def costs(self, points: np.ndarray) -> np.ndarray:
+        if self.index is not None:
+            return self.index.query(np.column_stack([points.real, points.imag]))[0]
+        return np.min(np.abs(points[:, None] - self.targets[None, :]) + self.extra, axis=1)
+
+    def cost(self, point: complex) -> float:
+        return float(self.costs(np.array([point]))[0])
+
+
+def _onward(later: list, park: complex, tolerance: float) -> _Onward:
+    """What follows a layer whose later layers are ``later``: the nearest entry of the next
+    layer with lines; through a layer that is one closed loop, which the pen leaves where it
+    came in, on to what follows that; the park position after the last layer."""
+    onward = _Onward(np.array([park]))
+    for layer in reversed(later):
+        if not len(layer):
+            continue
+        lines = layer.lines
+        if len(lines) == 1 and _closed(lines[0], tolerance):
+            loop = lines[0][:-1]
+            onward = _Onward(loop, onward.costs(loop))
+        else:
+            onward = _Onward(_entries(layer, tolerance))
+    return onward
+
+
+def _closed(line: np.ndarray, tolerance: float) -> bool:
+    """A loop :func:`_reloop` may start anywhere."""
+    return len(line) > 3 and abs(line[0] - line[-1]) <= tolerance
+
+
+def _entry_exit(lines: list[np.ndarray], pen: complex, onward: _Onward) -> float:
+    """Travel from ``pen`` into ``lines``, inside them (reloop and the last line's turn change
+    it) and from their end on (``onward``)."""
     if not lines:
         return 0.0
     starts = np.array([line[0] for line in lines])
     ends = np.array([line[-1] for line in lines])
     inside = float(np.abs(starts[1:] - ends[:-1]).sum())
-    return abs(starts[0] - pen) + inside + float(np.min(np.abs(following - ends[-1])))
+    return abs(starts[0] - pen) + inside + onward.cost(ends[-1])
 
 
-def _end_towards(lines: list[np.ndarray], pen: complex, following: np.ndarray) -> list[np.ndarray]:
-    """Reverse the layer's last line if the pen then gets there and on to the nearest of
-    ``following`` (the next layer's line ends, or the park position) by less travel."""
+def _end_towards(lines: list[np.ndarray], pen: complex, onward: _Onward) -> list[np.ndarray]:
+    """Reverse the layer's last line if the pen then gets there and on (``onward``: the next
+    layer, or the park position) by less travel."""
     if not lines or lines[-1][0] == lines[-1][-1]:
         return lines
     last = lines[-1]
     before = lines[-2][-1] if len(lines) > 1 else pen
-    onward = lambda point: float(np.min(np.abs(following - point)))  # noqa: E731
-    if abs(before - last[-1]) + onward(last[0]) < abs(before - last[0]) + onward(last[-1]):
+    if abs(before - last[-1]) + onward.cost(last[0]) < abs(before - last[0]) + onward.cost(last[-1]):
         return [*lines[:-1], last[::-1]]
     return lines
 
 
-def _reloop(lines: list[np.ndarray], pen: complex, tolerance: float) -> list[np.ndarray]:
-    """Start every closed line at the vertex nearest to where the pen comes from."""
+def _reloop(lines: list[np.ndarray], pen: complex, tolerance: float, onward: _Onward) -> list[np.ndarray]:
+    """Start every closed line at the vertex nearest to where the pen comes from; the layer's
+    last line, if closed, where coming in and going on (``onward``) add up to least."""
     import vpype as vp
 
     out = []
-    for line in lines:
-        if len(line) > 3 and abs(line[0] - line[-1]) <= tolerance:
-            line = vp.reloop(line, int(np.argmin(np.abs(line[:-1] - pen))))
+    for index, line in enumerate(lines):
+        if _closed(line, tolerance):
+            cost = np.abs(line[:-1] - pen)
+            if index == len(lines) - 1:
+                cost += onward.costs(line[:-1])
+            line = vp.reloop(line, int(np.argmin(cost)))
         out.append(line)
         pen = line[-1]
     return out

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from foldfab import optimize
 from foldfab.design import build_design
 from foldfab.job import parse_job
-from foldfab.optimize import _run, _simplify, _sort, _tiles
+from foldfab.optimize import _Onward, _onward, _reloop, _run, _simplify, _sort, _tiles
 from foldfab.scoring import crease_lines
 
 
@@ -107,3 +107,26 @@ def test_each_tile_starts_at_the_line_nearest_where_the_last_one_ended():
         pen = out[at - 1][-1] if at else 0j
         ends = np.array([[lines[i][0], lines[i][-1]] for i in tile])
         assert abs(out[at][0] - pen) == pytest.approx(np.abs(ends - pen).min())
+
+
+SQUARE = np.array([0, 100, 100 + 100j, 100j, 0])  # a closed loop, one corner on the park position
+
+
+def test_a_lone_closed_loop_is_left_where_it_was_entered_so_onward_travel_runs_through_it():
+    import vpype as vp
+
+    onward = _onward([vp.LineCollection([SQUARE])], 0j, 0.025)
+    pen = 90 + 10j
+    # into the loop at the corner by the park position and home from there: not the corner nearest the pen
+    assert onward.cost(pen) == pytest.approx(abs(pen))
+    # an open line is entered at an end, the nearer one (what follows it is not looked into)
+    assert _onward([vp.LineCollection([SQUARE[1:-1]])], 0j, 0.025).cost(pen) == pytest.approx(abs(pen - 100))
+
+
+def test_the_last_closed_line_of_a_layer_starts_where_coming_in_and_going_on_add_up_to_least():
+    pen = 90 + 10j
+    home = _Onward(np.array([0j]))
+    assert _reloop([SQUARE], pen, 0.025, home)[0][0] == 0  # 90.6 + 0, against 14.1 + 100 at (100, 0)
+    # a closed line that is not the layer's last starts nearest the pen
+    first, _ = _reloop([SQUARE, np.array([200, 300])], pen, 0.025, home)
+    assert first[0] == 100 and first[-1] == 100
