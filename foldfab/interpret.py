@@ -22,6 +22,7 @@ import math
 import re
 from array import array
 from dataclasses import dataclass, field
+from functools import lru_cache
 from itertools import chain
 from typing import TYPE_CHECKING, Iterator, NamedTuple
 
@@ -510,42 +511,52 @@ class HPGLMachine(Machine):
 
 _WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\(([^)]*)\)?|;(.*)$")
+_WORDS_ONLY = re.compile(r"(?:\s*" + _WORD.pattern + r")*\s*")  # nothing _WORD leaves unread
 SUPPORTED_G = frozenset({0, 1, 4, 17, 20, 21, 90, 91, 92})
 SUPPORTED_M = frozenset({0, 2, 3, 5})
 
 
-@dataclass(frozen=True)
-class GcodeLine:
-    """One G-code line read but not yet executed."""
+class GcodeLine(NamedTuple):
+    """One G-code line read but not yet executed (a named tuple: a program has many)."""
 
     raw: str
     offset: int
     code: str
     """The text outside comments, upper case."""
-    words: list[tuple[str, float]]
+    words: tuple[tuple[str, float], ...]
     """(letter, value) in order."""
-    comments: list[str]
+    comments: tuple[str, ...]
     unreadable: str
     """Text outside comments that is not a letter followed by a number ("" if none)."""
-    unsupported: list[str]
+    unsupported: tuple[str, ...]
     """G and M words GRBL 1.1 does not take ("G2", "M8")."""
 
     @property
     def problems(self) -> list[str]:
         """What an interpreter reports as ignored."""
         lead = [f"line at byte {self.offset}: {self.raw.strip()!r}"] if self.unreadable else []
-        return lead + self.unsupported
+        return lead + list(self.unsupported)
 
 
 def read_gcode_line(raw: str, offset: int = 0) -> GcodeLine:
     """Words, comments and problems of the line ``raw`` found at byte ``offset``."""
-    comments = [a or b for a, b in _COMMENT.findall(raw)]
-    code = _COMMENT.sub(" ", raw).upper()
-    words = [(letter, float(number)) for letter, number in _WORD.findall(code)]
-    unsupported = [f"{letter}{value:g}" for letter, value in words
-                   if (letter == "G" and value not in SUPPORTED_G)
-                   or (letter == "M" and value not in SUPPORTED_M)]
-    return GcodeLine(raw, offset, code, words, comments, _WORD.sub(" ", code).strip(), unsupported)
+    return GcodeLine(raw, offset, *_read_code(raw))
+
+
+@lru_cache(maxsize=64)  # a program repeats its pen-up and pen-down lines thousands of times
+def _read_code(raw: str) -> tuple[str, tuple, tuple, str, tuple]:
+    """Code, words, comments, unreadable text and unsupported words of the line ``raw``."""
+    if "(" in raw or ";" in raw:
+        comments = tuple(a or b for a, b in _COMMENT.findall(raw))
+        code = _COMMENT.sub(" ", raw).upper()
+    else:  # most lines: no comment to look for
+        comments, code = (), raw.upper()
+    words = tuple((letter, float(number)) for letter, number in _WORD.findall(code))
+    unsupported = tuple(f"{letter}{value:g}" for letter, value in words
+                        if (letter == "G" and value not in SUPPORTED_G)
+                        or (letter == "M" and value not in SUPPORTED_M))
+    unreadable = "" if _WORDS_ONLY.fullmatch(code) else _WORD.sub(" ", code).strip()
+    return code, words, comments, unreadable, unsupported
 
 
 class GcodeMachine(Machine):
@@ -584,7 +595,8 @@ class GcodeMachine(Machine):
     def apply(self, line: GcodeLine, end: int) -> None:
         """Execute a line read by :func:`read_gcode_line` (``end``: offset after its newline)."""
         offset = line.offset
-        self.result.ignored.extend(line.problems)
+        if line.unreadable or line.unsupported:
+            self.result.ignored.extend(line.problems)
         if not line.words:
             self.comments.extend(c.strip() for c in line.comments)
             return

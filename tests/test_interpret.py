@@ -406,3 +406,26 @@ def test_estimate_never_below_lower_bound(name):
         assert sum(s.pen_lifts for s in layers) == len(expected_strokes(plan))
 
     check()
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(alphabet="GXYZFMSPgxy0123456789.-+ \t();", max_size=30), st.integers(0, 10_000))
+def test_reading_a_gcode_line_by_the_fast_paths_gives_what_the_full_scan_gives(raw, offset):
+    """Lines without "(" or ";" skip the comment scan, lines of words only skip the scan for
+    unreadable text, repeated lines come from a cache: none of it changes what is read."""
+    import re
+
+    from foldfab.interpret import SUPPORTED_G, SUPPORTED_M, read_gcode_line
+
+    word = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
+    comment = re.compile(r"\(([^)]*)\)?|;(.*)$")
+    code = comment.sub(" ", raw).upper()
+    words = [(letter, float(number)) for letter, number in word.findall(code)]
+    for _ in range(2):  # the second time from the cache
+        line = read_gcode_line(raw, offset)
+        assert (line.raw, line.offset, line.code) == (raw, offset, code)
+        assert list(line.words) == words
+        assert list(line.comments) == [a or b for a, b in comment.findall(raw)]
+        assert line.unreadable == word.sub(" ", code).strip()
+        assert list(line.unsupported) == [f"{k}{v:g}" for k, v in words if (k == "G" and v not in SUPPORTED_G)
+                                          or (k == "M" and v not in SUPPORTED_M)]
