@@ -161,8 +161,7 @@ def _nearest_first(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
 def _entries(lines, tolerance: float) -> np.ndarray:
     """Where the pen can begin drawing ``lines``: the ends of open lines, any vertex of a
     closed one (it is relooped to start there)."""
-    return np.concatenate([line if abs(line[0] - line[-1]) <= tolerance else line[[0, -1]]
-                           for line in lines])
+    return np.concatenate([line if _closed(line, tolerance) else line[[0, -1]] for line in lines])
 
 
 class _Onward:
