@@ -80,13 +80,17 @@ def export_times() -> None:
         cases = [("paper scale: 1,000 faces from points", [str(paper), "--device", "graphtec-ce6000"]),
                  ("paper scale: jobs/vase-svg.toml (320 faces)", [str(ROOT / "jobs" / "vase-svg.toml"), "--device", "graphtec-ce6000"]),
                  ("101,000 faces, 100,000 strokes", [str(big), "--device", str(Path(tmp) / "long.toml")]),
+                 ("the same as G-code (GRBL)", [str(big), "--device", str(Path(tmp) / "grbl-roll.toml")]),
                  ("101,000 faces, smooth profile: 101 strokes", [str(smooth), "--device", str(Path(tmp) / "long.toml")])]
         profile = (ROOT / "devices" / "graphtec-ce6000.toml").read_text()
         (Path(tmp) / "long.toml").write_text(profile.replace('name = "graphtec-ce6000"', 'name = "long-roll"')
                                              .replace("plottable_area = [1000, 375]", "plottable_area = [375, 13000]"))
+        profile = (ROOT / "devices" / "grbl.toml").read_text()
+        (Path(tmp) / "grbl-roll.toml").write_text(profile.replace('name = "grbl"', 'name = "grbl-roll"')
+                                                  .replace("plottable_area = [300, 300]", "plottable_area = [13000, 375]"))
         vase = ROOT / "jobs" / "vase-svg.toml"
         for label, args in cases:
-            extra = []
+            out = Path(tmp) / ("out.gcode" if "grbl" in args[-1] else "out.plt")
             if args[0] == str(vase):
                 job = Path(tmp) / "vase.toml"
                 job.write_text(vase.read_text().replace('"vase-profile.svg"', f'"{ROOT / "jobs" / "vase-profile.svg"}"')
@@ -95,11 +99,11 @@ def export_times() -> None:
             best = math.inf
             for _ in range(3):
                 start = time.perf_counter()
-                subprocess.run(cli + args + ["-o", str(Path(tmp) / "out.plt")] + extra, check=True, capture_output=True)
+                subprocess.run(cli + args + ["-o", str(out)], check=True, capture_output=True)
                 best = min(best, time.perf_counter() - start)
             faces = subprocess.run([sys.executable, "-m", "foldfab", "design", args[0]], check=True,
                                    capture_output=True, text=True).stdout.split("faces ")[1].split(",")[0]
-            print(f"{label:<45} {best:6.2f} s   ({faces} faces, {Path(tmp, 'out.plt').stat().st_size:,} bytes)")
+            print(f"{label:<45} {best:6.2f} s   ({faces} faces, {out.stat().st_size:,} bytes)")
 
 
 if __name__ == "__main__":
