@@ -20,6 +20,8 @@ from foldfab.crease_pattern import build_crease_pattern
 from foldfab.mesh import find_penetrations, to_trimesh
 from foldfab.reflection import reflect
 
+from warm_bytecode import cache_foldfab_bytecode
+
 
 def wavy_design(profile_points: int, corners: int, radius: float = 40.0):
     """A regular column whose profile waves at 80% of the critical offset: valid, penetration-free."""
@@ -70,4 +72,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    cache_foldfab_bytecode()
     main()

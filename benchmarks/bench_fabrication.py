@@ -22,6 +22,8 @@ from foldfab.interpret import interpret
 from foldfab.optimize import travel
 from foldfab.plan import PlotPlan
 
+from warm_bytecode import cache_foldfab_bytecode
+
 ROOT = Path(__file__).resolve().parent.parent
 JOBS = ["hexagon-fig8a", "diamond-fig9", "vase-svg", "star", "open-wave-fig11f", "helix-fig12"]
 
@@ -107,6 +109,7 @@ def export_times() -> None:
 
 
 if __name__ == "__main__":
+    cache_foldfab_bytecode()
     travel_table()
     estimate_table()
     export_times()

@@ -14,6 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from warm_bytecode import cache_foldfab_bytecode
+
 ROOT = Path(__file__).resolve().parent.parent
 FOLDFAB = [sys.executable, "-m", "foldfab"]
 REPEAT = 7
@@ -84,4 +86,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    cache_foldfab_bytecode()
     main()
