@@ -100,14 +100,14 @@ class _GcodeWriter:
         if isinstance(up, str):
             self.pen_command(up)
         else:
-            self.move("G0", "Z" + fmt_number(up, 3))
+            self.move("G0", "Z" + fmt_number(up, GCODE_DECIMALS))
         self.down = False
 
     def pen_down(self, down: float | str) -> None:
         if isinstance(down, str):
             self.pen_command(down)
         else:
-            self.move("G1", "Z" + fmt_number(down, 3), self.device.gcode.z_speed * 60)
+            self.move("G1", "Z" + fmt_number(down, GCODE_DECIMALS), self.device.gcode.z_speed * 60)
         self.down = True
 
     def travel(self, xy: tuple[str, str]) -> None:
