@@ -130,7 +130,7 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
     from foldfab.placement import mirror
 
     cp = design.crease_pattern
-    placed = placement.apply(cp.vertices[:, 0] + 1j * cp.vertices[:, 1])
+    placed = placement.apply(scoring.vertex_points(cp))
     lines = {"valley": scoring.crease_lines(cp, "V", placed), "mountain": scoring.crease_lines(cp, "M", placed),
              "cut": scoring.outline_loops(cp, placed)}
     if spec.strategy == "two-sided":

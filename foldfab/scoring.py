@@ -28,8 +28,13 @@ def outline_loops(cp: CreasePattern, points: np.ndarray | None = None) -> list[n
     return _chains(cp.edges[cp.assignment == "B"], _points(cp, points))
 
 
+def vertex_points(cp: CreasePattern) -> np.ndarray:
+    """The crease pattern's vertices as complex numbers (mm)."""
+    return cp.vertices[:, 0] + 1j * cp.vertices[:, 1]
+
+
 def _points(cp: CreasePattern, points: np.ndarray | None) -> np.ndarray:
-    return cp.vertices[:, 0] + 1j * cp.vertices[:, 1] if points is None else points
+    return vertex_points(cp) if points is None else points
 
 
 def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
