@@ -104,19 +104,80 @@ def _to_segment(q: complex, p0: complex, p1: complex) -> float:
     return abs(q - (p0 + min(max(s, 0.0), 1.0) * chord))
 
 
+def _svgpathtools():
+    """The svgpathtools package, loaded without loading scipy.integrate.
+
+    svgpathtools.path imports ``scipy.integrate.quad`` as it loads, for arc lengths
+    that foldfab never asks for (samples are spaced by :func:`_evenly`); that import
+    costs 80-90 ms, a sixth of a paper-scale export.  svgpathtools supports running
+    without scipy, so the import is made to fail once, and svgpathtools is then handed
+    a ``quad`` that imports scipy's on first use: anyone else using svgpathtools in
+    the process gets the same lengths as always.
+    """
+    import sys
+
+    if "svgpathtools" not in sys.modules and "scipy.integrate" not in sys.modules:
+        sys.modules["scipy.integrate"] = None  # `from scipy.integrate import ...` raises ImportError
+        try:
+            import svgpathtools.path as module
+        except ImportError:  # a svgpathtools that needs scipy.integrate: load it as usual below
+            pass
+        else:
+            if not getattr(module, "_quad_available", True):
+                module.quad, module._quad_available = _quad, True
+        finally:
+            del sys.modules["scipy.integrate"]
+    import svgpathtools
+
+    return svgpathtools
+
+
+def _quad(*args, **kwargs):
+    """scipy.integrate.quad, imported when first called."""
+    from scipy.integrate import quad
+
+    return quad(*args, **kwargs)
+
+
+ARC_CHORDS = 4096  # chords per piece that measure arc length for ``samples``
+
+
+def _evenly(path, samples: int) -> np.ndarray:
+    """``samples`` points of ``path`` evenly spaced by arc length, both ends included (complex).
+
+    Arc length is measured along ``ARC_CHORDS`` chords per piece, at a relative error
+    of about 1e-8 on smooth curves, and each point is placed on the curve itself at its
+    interpolated parameter.  svgpathtools' ``ilength`` would integrate with scipy per
+    point: 0.24 s for 400 points of the example vase.
+    """
+    dense_t = np.linspace(0.0, 1.0, ARC_CHORDS + 1)
+    dense = np.concatenate([seg.point(dense_t) for seg in path])
+    chords = np.abs(np.diff(dense))
+    chords[ARC_CHORDS::ARC_CHORDS + 1] = 0.0  # from one piece's end to the next one's start
+    arc = np.concatenate([[0.0], np.cumsum(chords)])
+    along = np.linspace(0.0, arc[-1], samples)
+    at = np.clip(np.searchsorted(arc, along, side="right") - 1, 0, len(arc) - 2)
+    gap = arc[at + 1] - arc[at]
+    frac = np.divide(along - arc[at], gap, out=np.zeros_like(along), where=gap > 0)
+    piece, step = np.divmod(at, ARC_CHORDS + 1)
+    t = np.minimum((step + frac) / ARC_CHORDS, 1.0)
+    points = np.empty(samples, dtype=complex)
+    for k in np.unique(piece):
+        chosen = piece == k
+        points[chosen] = path[int(k)].point(t[chosen])
+    points[0], points[-1] = path[0].start, path[-1].end
+    return points
+
+
 def _sample(path, samples: int | None, tolerance: float, scale: float) -> np.ndarray:
     """Points along an svgpathtools Path, in user units (complex)."""
-    from svgpathtools import Line
-
     if samples is not None:
-        total = path.length()
-        ts = np.linspace(0.0, total, samples)
-        return np.array([path.point(path.ilength(s)) if 0 < s < total else path.point(0 if s == 0 else 1)
-                         for s in ts])
+        return _evenly(path, samples)
+    line = _svgpathtools().Line
     points = [path[0].start]
     tol = tolerance / scale
     for seg in path:
-        if isinstance(seg, Line):
+        if isinstance(seg, line):
             points.append(seg.end)
             continue
         stack = [(0.0, 1.0)]
@@ -144,11 +205,9 @@ def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = Non
     """The chosen path of ``file`` as an (N, 2) array in mm, y up from the page bottom."""
     from xml.etree.ElementTree import ParseError
 
-    from svgpathtools import Document
-
     where = where or str(file)
     try:
-        doc = Document(str(file))
+        doc = _svgpathtools().Document(str(file))
     except (ParseError, OSError) as exc:
         raise FoldfabError(f"{file}: cannot read SVG: {exc}") from None
     root = doc.tree.getroot()

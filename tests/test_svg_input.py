@@ -9,6 +9,8 @@ same, hand-written map.
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import textwrap
 from pathlib import Path
 
@@ -16,13 +18,14 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
-from svgpathtools import parse_path
+from svgpathtools import CubicBezier, parse_path
 
 from foldfab.design import load_design, profile_points, trajectory_points
 from foldfab.errors import FoldfabError
 from foldfab.job import load_job
 from foldfab.svg_polyline import DEFAULT_TOLERANCE, read_svg_polyline
 
+JOBS = Path(__file__).resolve().parent.parent / "jobs"
 PX = 25.4 / 96  # mm per CSS pixel
 NS = 'xmlns="http://www.w3.org/2000/svg"'
 
@@ -404,6 +407,48 @@ def test_samples_gives_exactly_n_points_evenly_spaced(tmp_path, samples):
         start = i
     steps = np.diff(at)
     np.testing.assert_allclose(steps, arc[-1] / (samples - 1), rtol=0.02)
+
+
+coordinate = st.integers(0, 200)
+
+
+@settings(max_examples=25, deadline=None)
+@given(points=st.lists(st.tuples(coordinate, coordinate), min_size=7, max_size=7),
+       arc=st.booleans(), samples=st.integers(2, 12))
+def test_samples_lie_where_svgpathtools_measures_the_arc(tmp_path_factory, points, arc, samples):
+    """Each sample sits at its share of the arc length as svgpathtools integrates it (scipy's quad)."""
+    (x0, y0), (x1, y1), (x2, y2), (x3, y3), (x4, y4), (rx, ry), (x5, y5) = points
+    assume((x4, y4) != (x5, y5))  # svgpathtools refuses an arc that ends where it starts
+    tail = f"A {rx + 5} {ry + 5} 30 0 1 {x5} {y5}" if arc else f"Q {rx} {ry} {x5} {y5}"
+    d = f"M {x0} {y0} C {x1} {y1} {x2} {y2} {x3} {y3} L {x4} {y4} {tail}"
+    path = parse_path(d)
+    assume(all(seg.length() > 1 for seg in path) and abs(path.end - path.start) > 1)
+    svg = write_svg(tmp_path_factory.mktemp("svg"), f'<path d="{d}"/>',
+                    'width="100mm" height="50mm" viewBox="0 0 200 100"')
+    got = read(svg, samples=samples)
+    total = path.length()
+    expected = [path.point(path.ilength(s)) for s in np.linspace(0, total, samples)[1:-1]]
+    expected = [path.start, *expected, path.end]
+    want = np.column_stack([np.real(expected) * 0.5, (100 - np.imag(expected)) * 0.5])
+    assume(np.linalg.norm(np.diff(want, axis=0), axis=1).min() > 1e-3)  # the reader drops repeated points
+    np.testing.assert_allclose(got, want, atol=1e-6 * total)
+
+
+def test_reading_svg_leaves_scipy_integrate_unloaded_and_svgpathtools_whole():
+    """svgpathtools is loaded without scipy.integrate (80-90 ms), yet its own lengths still use quad."""
+    code = textwrap.dedent(f"""\
+        import sys
+        from pathlib import Path
+        from foldfab.svg_polyline import read_svg_polyline
+        read_svg_polyline(Path({str(JOBS / "vase-profile.svg")!r}), "profile", samples=50)
+        print("scipy.integrate" in sys.modules)
+        import svgpathtools
+        print(svgpathtools.CubicBezier(0, 100j, 100 + 100j, 100).length(), "scipy.integrate" in sys.modules)
+        """)
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.split()
+    assert out[0] == "False"
+    assert float(out[1]) == pytest.approx(CubicBezier(0, 100j, 100 + 100j, 100).length(), abs=1e-9)
+    assert out[2] == "True"
 
 
 def test_samples_ignore_straight_corners_but_keep_the_ends(tmp_path):
