@@ -26,7 +26,10 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
                xonxoff = false, rtscts = false, dsrdtr = false
     [buffer]   size (bytes, required), flow_control = "xonxoff" | "rtscts" | "escb" | "grbl" | "none"
     [motion]   draw_speed, travel_speed, acceleration (mm/s^2), pen_lift_time (s): required;
-               park = [x, y] (device mm, default [0, 0]): where the head waits at pauses and the end
+               park = [x, y] (device mm, default [0, 0]): where the head waits at pauses and the end;
+               junction_deviation (mm > 0, G-code only): GRBL's $11; time estimates and the
+               simulated GRBL then keep speed through corners as GRBL plans them (absent: every
+               corner sharper than 1 degree is taken from rest)
     [limits]   optional ranges [lo, hi] for pen, force, speed
     [gcode]    gcode only: pen_up = Z height (number) or a servo command ("M3 S50");
                z_speed (mm/s, required with a Z height)
@@ -122,6 +125,8 @@ class Motion:
     acceleration: float
     pen_lift_time: float
     park: tuple[float, float] = (0.0, 0.0)
+    junction_deviation: float | None = None
+    """GRBL's ``$11`` (mm): corners are planned with junction speeds; None: taken from rest."""
 
 
 @dataclass(frozen=True)
@@ -557,7 +562,12 @@ def _parse(root: _Reader) -> DeviceProfile:
         acceleration=mot.take("acceleration", "mm/s^2 > 0", positive),
         pen_lift_time=mot.take("pen_lift_time", "seconds >= 0", _number(0)),
         park=mot.take("park", "[x, y] in device mm", _pair(_number()), (0.0, 0.0)),
+        junction_deviation=mot.take("junction_deviation", "mm > 0 (GRBL's $11)", positive, None),
     )
+    if protocol == "hpgl" and motion.junction_deviation is not None:
+        raise mot.fail("junction_deviation", "no junction_deviation in an HPGL profile (GRBL's $11; "
+                       "HPGL plotters are modelled stopping at corners)", motion.junction_deviation,
+                       "remove it")
     if not all(0 <= motion.park[i] <= area[i] for i in (0, 1)):
         raise mot.fail("park", f"a point inside plottable_area {list(area)}", list(motion.park),
                        "move the park position into the plottable area")

@@ -1,14 +1,26 @@
 """Plot-time estimate from an interpreted program.
 
-Motion model: every straight move accelerates from rest at the profile's
-``acceleration``, cruises at its speed (the stroke's speed when drawing, the profile's
-``travel_speed`` when the pen is up) if it is long enough, and decelerates to rest.
-Consecutive drawn segments that turn by less than ``CONTINUATION_ANGLE`` count as one
-move (a straight line split into many points is not slowed down at every point);
-any sharper corner is taken from rest.  This is pessimistic for GRBL, whose
-junction deviation keeps some speed through shallow corners, and about right for
-plotters that stop at every vertex.  Each pen down and each pen up costs the
-profile's ``pen_lift_time``; pauses for the operator are not counted.
+Two motion models, chosen by the device profile:
+
+* Stop at corners (profiles without ``junction_deviation``, such as the HP-GL plotters).  Every
+  straight move accelerates from rest at the profile's ``acceleration``, cruises at its
+  speed (the stroke's speed when drawing) if it is long enough, and decelerates to rest.
+  Consecutive drawn segments that turn by less than ``CONTINUATION_ANGLE`` count as one
+  move (a straight line split into many points is not slowed down at every point); any
+  sharper corner is taken from rest.
+* Junction speeds (a ``junction_deviation``: GRBL's ``$11``).  Each stroke is planned as
+  GRBL 1.1 plans it (``planner.c``) with unlimited look-ahead: it starts and ends at rest,
+  each vertex may be passed at the junction speed :func:`junction_limits` allows, and
+  :func:`plan_speeds` gives every vertex the highest speed that acceleration allows on
+  the way there and to every later stop; each segment is then a trapezoid (or triangle)
+  from its entry to its exit speed (:func:`segment_times`).  GRBL's planner looks only
+  as far ahead as its buffer holds, so a real (or simulated) run may take a little longer.
+  The profile's one ``acceleration`` serves every direction (GRBL limits each axis, so
+  it accelerates diagonal moves somewhat faster).
+
+In both, a pen-up move is one rest-to-rest trapezoid at the profile's ``travel_speed``,
+each pen down and each pen up costs the profile's ``pen_lift_time``, and pauses for the
+operator are not counted.
 
 ``lower_bound`` is what no plan can beat for the same strokes: drawn length at the
 draw speed with infinite acceleration, plus one pen down and one pen up per stroke.
@@ -68,6 +80,54 @@ def move_times(lengths: np.ndarray, speed: float | np.ndarray, acceleration: flo
                     2.0 * np.sqrt(lengths / acceleration))
 
 
+def junction_limits(before: np.ndarray, after: np.ndarray, speeds: float | np.ndarray,
+                    acceleration: float, deviation: float) -> np.ndarray:
+    """Squared speeds (mm²/s²) GRBL 1.1 allows through junctions between moves along the unit
+    vectors ``before`` and ``after`` (shape (..., 2)), both at nominal ``speeds`` (mm/s).
+
+    As ``planner.c``: a reversal stops, a straight junction is not limited, any other
+    passes at ``v² = acceleration deviation s / (1 - s)``, ``s = sin(θ/2)`` with
+    ``cos θ = -before·after``; at most the nominal speed squared.
+    """
+    import numpy as np
+
+    cos_theta = -(np.asarray(before, dtype=float) * after).sum(axis=-1)
+    sin_half = np.sqrt(0.5 * (1.0 - np.clip(cos_theta, -0.999999, 0.999999)))
+    limit = np.where(cos_theta > 0.999999, 0.0, acceleration * deviation * sin_half / (1.0 - sin_half))
+    return np.minimum(np.where(cos_theta < -0.999999, np.inf, limit), np.square(speeds))
+
+
+def plan_speeds(limits: np.ndarray, lengths: np.ndarray, acceleration: float) -> np.ndarray:
+    """Squared speeds at the n + 1 ends of n consecutive moves of ``lengths`` (mm): each as high
+    as its ``limit`` allows while acceleration can reach it from the ends before and still
+    slow down to the limits of the ends after (GRBL's backward and forward passes).
+
+    The passes ``w[i] = min(J[i], w[i+1] + 2aL[i])`` and ``u[i] = min(w[i], u[i-1] + 2aL[i-1])``
+    unroll to ``w[i] = min(J[k] + 2aS[k], k >= i) - 2aS[i]`` and ``u[i] = min(w[k] - 2aS[k],
+    k <= i) + 2aS[i]`` (``S``: distance from the first end): one ``np.minimum.accumulate``
+    each, backwards then forwards.  A zero limit makes the moves on either side independent.
+    """
+    import numpy as np
+
+    reach = 2.0 * acceleration * np.concatenate([[0.0], np.cumsum(lengths)])
+    backward = np.minimum.accumulate((np.asarray(limits, dtype=float) + reach)[::-1])[::-1] - reach
+    return np.minimum.accumulate(backward - reach) + reach
+
+
+def segment_times(lengths: np.ndarray, speeds: float | np.ndarray, entry: np.ndarray,
+                  leave: np.ndarray, acceleration: float) -> np.ndarray:
+    """Seconds for moves of ``lengths`` (mm) entered and left at squared speeds ``entry`` and
+    ``leave`` (each reachable from the other), cruising at ``speeds`` if the move is long
+    enough (trapezoid), else turning at the highest speed it reaches (triangle)."""
+    import numpy as np
+
+    lengths, entry, leave = (np.asarray(x, dtype=float) for x in (lengths, entry, leave))
+    mean = 0.5 * (entry + leave)
+    peak = np.minimum(np.square(speeds), mean + acceleration * lengths)  # squared
+    cruise = np.maximum(lengths - (peak - mean) / acceleration, 0.0)
+    return (2.0 * np.sqrt(peak) - np.sqrt(entry) - np.sqrt(leave)) / acceleration + cruise / speeds
+
+
 def straight_runs(points: np.ndarray) -> np.ndarray:
     """Lengths of the straight moves in a polyline: collinear segments merged, zero ones dropped."""
     import numpy as np
@@ -75,12 +135,8 @@ def straight_runs(points: np.ndarray) -> np.ndarray:
     return polyline_runs(points, np.zeros(1, dtype=np.intp))[1]
 
 
-def polyline_runs(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Polylines stored one after another in ``points`` (N, 2), polyline k from row ``starts[k]``.
-
-    Returns each polyline's length, the lengths of all their straight moves in order (as
-    :func:`straight_runs` finds them in each polyline) and the polyline of each move.
-    """
+def _segments(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Each polyline's length, then the steps, lengths and polyline of its non-zero segments."""
     import numpy as np
 
     count = len(starts)
@@ -91,7 +147,18 @@ def polyline_runs(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, n
     steps, lengths, owner = steps[within], lengths[within], owner[1:][within]
     totals = np.bincount(owner, weights=lengths, minlength=count)
     moving = lengths > 0
-    steps, lengths, owner = steps[moving], lengths[moving], owner[moving]
+    return totals, steps[moving], lengths[moving], owner[moving]
+
+
+def polyline_runs(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Polylines stored one after another in ``points`` (N, 2), polyline k from row ``starts[k]``.
+
+    Returns each polyline's length, the lengths of all their straight moves in order (as
+    :func:`straight_runs` finds them in each polyline) and the polyline of each move.
+    """
+    import numpy as np
+
+    totals, steps, lengths, owner = _segments(points, starts)
     if not len(lengths):
         return totals, lengths, owner
     cross = steps[:-1, 0] * steps[1:, 1] - steps[:-1, 1] * steps[1:, 0]
@@ -99,6 +166,27 @@ def polyline_runs(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, n
     corner = (np.abs(np.arctan2(cross, dot)) > CONTINUATION_ANGLE) | (owner[1:] != owner[:-1])
     runs = np.concatenate([[0], np.flatnonzero(corner) + 1])
     return totals, np.add.reduceat(lengths, runs), owner[runs]
+
+
+def planned_segments(points: np.ndarray, starts: np.ndarray, speeds: np.ndarray,
+                     acceleration: float, deviation: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Polylines stored as for :func:`polyline_runs`, polyline k drawn at ``speeds[k]``, each
+    planned from rest to rest with junction speeds (junction ``deviation``, mm).
+
+    Returns each polyline's length, the seconds of all their non-zero segments in order and
+    the polyline of each segment.
+    """
+    import numpy as np
+
+    totals, steps, lengths, owner = _segments(points, starts)
+    units = steps / lengths[:, None]
+    speed = speeds[owner]
+    limits = np.zeros(len(lengths) + 1)  # at each end of each segment; polylines end at rest
+    limits[1:-1] = np.where(owner[1:] == owner[:-1],
+                            junction_limits(units[:-1], units[1:], speed[1:], acceleration, deviation),
+                            0.0)
+    ends = plan_speeds(limits, lengths, acceleration)
+    return totals, segment_times(lengths, speed, ends[:-1], ends[1:], acceleration), owner
 
 
 def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
@@ -112,8 +200,13 @@ def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
     speeds = np.array([s.speed for s in strokes], dtype=float)
     sizes = np.array([len(s.points) for s in strokes], dtype=np.intp)
     points = np.concatenate([s.points for s in strokes]) if strokes else np.zeros((0, 2))
-    lengths, runs, owners = polyline_runs(points, np.cumsum(sizes) - sizes)
-    run_times = move_times(runs, speeds[owners], motion.acceleration)
+    starts = np.cumsum(sizes) - sizes
+    if motion.junction_deviation is None:
+        lengths, runs, owners = polyline_runs(points, starts)
+        run_times = move_times(runs, speeds[owners], motion.acceleration)
+    else:
+        lengths, run_times, owners = planned_segments(points, starts, speeds, motion.acceleration,
+                                                      motion.junction_deviation)
     seconds = np.bincount(owners, weights=run_times, minlength=len(strokes))
     ends = np.array([(*t.start, *t.end) for t in travels], dtype=float).reshape(-1, 4)
     travel_lengths = np.hypot(ends[:, 2] - ends[:, 0], ends[:, 3] - ends[:, 1])

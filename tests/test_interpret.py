@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from itertools import accumulate
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,7 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from foldfab.devices import DeviceProfile, load_device
-from foldfab.estimate import estimate, move_times, straight_runs
+from foldfab.estimate import (estimate, junction_limits, move_times, plan_speeds, planned_segments,
+                              segment_times, straight_runs)
 from foldfab.interpret import (GcodeMachine, HPGLMachine, HPGLTokenizer, Interpretation, Stroke,
                                Travel, interpret)
 from foldfab.plan import Pass, Pause, PlotPlan, Tool
@@ -349,13 +351,20 @@ def test_estimate_is_the_sum_of_each_stroke_on_its_own(name):
     device = load_device(name)
     acceleration = device.motion.acceleration
 
+    deviation = device.motion.junction_deviation
+
+    def alone(stroke: Stroke) -> float:
+        if deviation is None:
+            return float(move_times(straight_runs(stroke.points), stroke.speed, acceleration).sum())
+        return float(planned_segments(stroke.points, np.zeros(1, dtype=np.intp), np.array([stroke.speed]),
+                                      acceleration, deviation)[1].sum())
+
     @settings(max_examples=25, deadline=None)
     @given(random_plans(device))
     def check(plan):
         run = interpret(write_program(plan, device), device, plan.sheet)
         result = estimate(run, device)
-        seconds = [float(move_times(straight_runs(s.points), s.speed, acceleration).sum())
-                   for s in run.strokes]
+        seconds = [alone(s) for s in run.strokes]
         assert result.draw_time == pytest.approx(sum(seconds), rel=1e-12, abs=1e-12)
         lower = sum(s.length / s.speed for s in run.strokes) + result.lift_time
         assert result.lower_bound == pytest.approx(lower, rel=1e-12, abs=1e-12)
@@ -429,3 +438,175 @@ def test_reading_a_gcode_line_by_the_fast_paths_gives_what_the_full_scan_gives(r
         assert line.unreadable == word.sub(" ", code).strip()
         assert list(line.unsupported) == [f"{k}{v:g}" for k, v in words if (k == "G" and v not in SUPPORTED_G)
                                           or (k == "M" and v not in SUPPORTED_M)]
+
+
+# --- junction speeds (GRBL's planner) ---------------------------------------------------
+
+GRBL = load_device("grbl")
+A, JD = GRBL.motion.acceleration, GRBL.motion.junction_deviation
+
+
+def one_polyline(points, speed: float = 30.0, acceleration: float = A, deviation: float = JD) -> np.ndarray:
+    """Seconds of each non-zero segment of one polyline planned with junction speeds."""
+    return planned_segments(np.asarray(points, dtype=float), np.zeros(1, dtype=np.intp),
+                            np.array([speed]), acceleration, deviation)[1]
+
+
+def grbl_junction(before, after, speed, acceleration, deviation) -> float:
+    """GRBL 1.1 planner.c, one junction at a time (MINIMUM_JUNCTION_SPEED = 0)."""
+    cos_theta = -(before[0] * after[0] + before[1] * after[1])
+    if cos_theta > 0.999999:
+        limit = 0.0
+    elif cos_theta < -0.999999:
+        limit = math.inf
+    else:
+        sin_theta_d2 = math.sqrt(0.5 * (1.0 - cos_theta))
+        limit = acceleration * deviation * sin_theta_d2 / (1.0 - sin_theta_d2)
+    return min(limit, speed * speed)
+
+
+def grbl_passes(limits, lengths, acceleration) -> list[float]:
+    """GRBL's backward then forward pass over squared speeds, one end at a time."""
+    n = len(lengths)
+    w = list(limits)
+    for i in range(n - 1, -1, -1):
+        w[i] = min(limits[i], w[i + 1] + 2 * acceleration * lengths[i])
+    u = list(w)
+    for i in range(1, n + 1):
+        u[i] = min(w[i], u[i - 1] + 2 * acceleration * lengths[i - 1])
+    return u
+
+
+coordinates = st.floats(-100, 100, allow_nan=False)
+polylines = st.lists(st.tuples(coordinates, coordinates), min_size=2, max_size=12).filter(
+    lambda p: len({(round(x, 6), round(y, 6)) for x, y in p}) > 1)
+speeds = st.floats(1, 500)
+
+
+def test_junction_speed_of_a_right_angle_by_hand():
+    """90 degrees between two 100 mm segments at 30 mm/s (grbl: 500 mm/s², $11 = 0.01 mm)."""
+    # cos θ = 0, sin(θ/2) = √½ = 0.70710678: v² = 500 · 0.01 · 0.70710678 / 0.29289322 = 12.0710678
+    assert junction_limits((1.0, 0.0), (0.0, 1.0), 30.0, A, JD) == pytest.approx(12.0710678)
+    assert junction_limits((1.0, 0.0), (1.0, 0.0), 30.0, A, JD) == 900.0  # straight: the speed
+    assert junction_limits((1.0, 0.0), (-1.0, 0.0), 30.0, A, JD) == 0.0  # reversal: a stop
+    # each segment: 0 -> 30 mm/s in 0.06 s over 0.9 mm; 30 -> 3.4743 mm/s (√12.0710678) in
+    # 0.0530513 s over (900 - 12.0710678) / 1000 = 0.8879289 mm; the remaining 98.2120711 mm
+    # at 30 mm/s take 3.2737357 s: 3.3867871 s, against 3.3933333 s from rest to rest
+    times = one_polyline([(0, 0), (100, 0), (100, 100)])
+    assert times.tolist() == pytest.approx([3.3867871, 3.3867871], abs=1e-7)
+    assert move_times(np.array([100.0]), 30.0, A)[0] == pytest.approx(3.3933333, abs=1e-7)
+    # a 2 mm segment between two right angles never reaches 30 mm/s: a triangle up to
+    # v² = 12.0710678 + 500 · 2 = 1012.07 > 900, so 30 mm/s after all: 0.0530513 s each way
+    # over 0.8879289 mm, 0.2241422 mm at 30 mm/s (0.0074714 s)
+    times = one_polyline([(0, 0), (100, 0), (100, 2), (0, 2)])
+    assert times[1] == pytest.approx(2 * 0.0530513 + 0.0074714, abs=1e-7)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.tuples(coordinates, coordinates), st.tuples(coordinates, coordinates), speeds, st.floats(1, 5000),
+       st.floats(1e-4, 1.0))
+def test_junction_limits_are_grbls(a, b, speed, acceleration, deviation):
+    """The vectorised junction speeds are planner.c's, junction by junction."""
+    before, after = np.array([a, b], dtype=float)
+    if min(np.hypot(*before), np.hypot(*after)) < 1e-6:
+        return
+    before, after = before / np.hypot(*before), after / np.hypot(*after)
+    expected = grbl_junction(before, after, speed, acceleration, deviation)
+    got = junction_limits(np.array([before, after]), np.array([after, before]), speed, acceleration, deviation)
+    assert got.tolist() == pytest.approx([expected] * 2, rel=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.one_of(st.floats(0, 1e4), st.sampled_from([0.0, math.inf])),
+                          st.one_of(st.floats(0, 50), st.just(0.0))), min_size=1, max_size=30),
+       st.floats(1, 5000))
+def test_vectorised_passes_are_grbls_loops(ends, acceleration):
+    """plan_speeds (cumulative minima) gives what GRBL's two loops give."""
+    limits = [limit for limit, _ in ends] + [0.0]
+    lengths = [length for _, length in ends]
+    limits[0] = 0.0
+    expected = grbl_passes(limits, lengths, acceleration)
+    got = plan_speeds(np.array(limits), np.array(lengths), acceleration)
+    scale = 2 * acceleration * sum(lengths) + 1.0
+    assert got.tolist() == pytest.approx(expected, abs=1e-12 * scale)
+    assert (got >= 0).all()
+
+
+@settings(max_examples=200, deadline=None)
+@given(polylines, speeds)
+def test_planned_time_between_the_bound_and_stopping_everywhere(points, speed):
+    """No faster than the length at full speed, no slower than stopping at every vertex; the
+    speeds at the ends stay within the junction limits and what acceleration can reach."""
+    points = np.array(points, dtype=float)
+    steps = np.diff(points, axis=0)
+    lengths = np.hypot(*steps.T)
+    steps, lengths = steps[lengths > 0], lengths[lengths > 0]
+    total = float(one_polyline(points, speed).sum())
+    assert lengths.sum() / speed * (1 - 1e-12) <= total
+    assert total <= move_times(lengths, speed, A).sum() * (1 + 1e-12)
+    units = steps / lengths[:, None]
+    limits = np.concatenate([[0.0], junction_limits(units[:-1], units[1:], speed, A, JD), [0.0]])
+    ends = plan_speeds(limits, lengths, A)
+    slack = 1e-9 * (2 * A * lengths.sum() + speed * speed)
+    assert (ends <= limits + slack).all() and ends[0] == 0.0 and ends[-1] == 0.0
+    assert (ends[1:] <= ends[:-1] + 2 * A * lengths + slack).all()
+    assert (ends[:-1] <= ends[1:] + 2 * A * lengths + slack).all()
+    assert segment_times(lengths, speed, ends[:-1], ends[1:], A).sum() == total
+
+
+@settings(max_examples=200, deadline=None)
+@given(polylines, speeds)
+def test_reversed_polyline_takes_as_long(points, speed):
+    forward = one_polyline(points, speed).sum()
+    assert one_polyline(points[::-1], speed).sum() == pytest.approx(forward, rel=1e-9)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.tuples(coordinates, coordinates), st.tuples(coordinates, coordinates),
+       st.lists(st.floats(0, 1), max_size=40), speeds)
+def test_a_straight_line_split_into_points_takes_as_long_as_one_segment(a, b, cuts, speed):
+    a, b = np.array(a), np.array(b)
+    if np.hypot(*(b - a)) < 1e-3:
+        return
+    points = [a + t * (b - a) for t in [0.0, *sorted(cuts), 1.0]]
+    whole = one_polyline([a, b], speed)
+    assert one_polyline(points, speed).sum() == pytest.approx(whole.sum(), rel=1e-9)
+    assert whole[0] == pytest.approx(move_times(np.array([np.hypot(*(b - a))]), speed, A)[0], rel=1e-12)
+
+
+def test_junction_deviation_estimate_keeps_speed_through_corners():
+    """On grbl, strokes that turn a little at every vertex go faster than from rest at each
+    corner and never beat the bound; without $11 the same profile stops at corners."""
+    from dataclasses import replace
+
+    stop = replace(GRBL, motion=replace(GRBL.motion, junction_deviation=None))
+    angles = np.linspace(0, math.pi, 60)
+    arc = np.column_stack([100 + 50 * np.cos(angles), 100 + 50 * np.sin(angles)])
+    run = Interpretation("gcode", [Stroke(arc, None, None, 30.0, -0.3, 0)], [])
+    planned, stopping = estimate(run, GRBL), estimate(run, stop)
+    assert planned.lower_bound <= planned.total < stopping.total
+    assert planned.draw_time == pytest.approx(one_polyline(arc).sum(), rel=1e-12)
+    # turns of 3 degrees pass at full speed (v² = 14,000 > 900): the stroke ramps at its ends only
+    chords = 59 * 100 * math.sin(math.pi / 118)
+    assert planned.draw_time == pytest.approx(move_times(np.array([chords]), 30.0, A)[0], rel=1e-12)
+
+
+@pytest.mark.parametrize("value, words", [
+    ("-0.01", ["motion.junction_deviation", "mm > 0", "-0.01"]),
+    ("0", ["motion.junction_deviation", "mm > 0"]),
+    ('"small"', ["motion.junction_deviation", "mm > 0", "'small'"]),
+])
+def test_junction_deviation_is_checked(tmp_path, value, words):
+    from foldfab.errors import FoldfabError
+
+    path = tmp_path / "bad.toml"
+    path.write_text(Path(GRBL.source).read_text().replace("junction_deviation = 0.01",
+                                                          f"junction_deviation = {value}"))
+    with pytest.raises(FoldfabError) as error:
+        load_device(str(path))
+    message = str(error.value)
+    assert str(path) in message and all(word in message for word in words), message
+    hp = Path(load_device("hp7475a").source).read_text()
+    path.write_text(hp.replace("[motion]", "[motion]\njunction_deviation = 0.01"))
+    with pytest.raises(FoldfabError, match="motion.junction_deviation.*no junction_deviation"):
+        load_device(str(path))

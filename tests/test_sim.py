@@ -5,23 +5,27 @@ the virtual clock; and the same over a real pseudo-terminal."""
 from __future__ import annotations
 
 import json
+import math
 import signal
 import subprocess
 import sys
 import threading
 import time
 from collections import deque
+from dataclasses import replace
 from pathlib import Path
 from urllib.parse import urlencode
 
 import numpy as np
 import pytest
 import serial
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.estimate import estimate
+from foldfab.estimate import estimate, move_times, straight_runs
 from foldfab.fabrication import fabricate, parse_fabrication
 from foldfab.interpret import HPGLMachine, HPGLTokenizer, interpret
 from foldfab.sim import SimOptions, create_simulator, parse_options
@@ -289,6 +293,112 @@ def test_instant_time_runs_a_long_job_at_once_with_true_statistics(device_name):
     assert stats.busy_time == pytest.approx(total, rel=1e-9)
     assert total <= stats.plot_time < 1.05 * total  # a careful sender hardly starves it
     assert stats.starved_time < 0.05 * total
+
+
+def stop_at_corners(device):
+    """``device`` without a junction deviation: every corner from rest."""
+    return replace(device, motion=replace(device.motion, junction_deviation=None))
+
+
+def rest_to_rest(run, device, runs=straight_runs) -> float:
+    """Seconds of ``run`` if every straight run of each stroke (``runs`` of its points) went
+    from rest to rest: the stop-at-corners model, written out stroke by stroke."""
+    motion = device.motion
+    drawn = sum(float(move_times(runs(s.points), s.speed, motion.acceleration).sum()) for s in run.strokes)
+    travel = sum(float(move_times(np.array([math.dist(t.start, t.end)]), motion.travel_speed,
+                                  motion.acceleration)[0]) for t in run.travels)
+    return drawn + travel + 2 * motion.pen_lift_time * len(run.strokes)
+
+
+def segments(points) -> np.ndarray:
+    """The non-zero segment lengths of a polyline, each its own move."""
+    lengths = np.hypot(*np.diff(points, axis=0).T)
+    return lengths[lengths > 0]
+
+
+@pytest.mark.parametrize("device_name", ["hp7475a", "graphtec-ce6000", "grbl"])
+def test_without_junction_deviation_the_simulators_stop_at_corners(device_name):
+    """HP-GL plotters, and GRBL without $11, move by the stop-at-corners model as before."""
+    device, fab = job(device_name)
+    device = stop_at_corners(device)
+    port = careful_port(device)
+    careful_send(port, device, fab.program.encode())
+    run = wanted(device, fab)
+    busy = port.simulator.stats.busy_time
+    assert busy == pytest.approx(rest_to_rest(run, device), rel=1e-9)
+    assert busy == pytest.approx(estimate(run, device).total, rel=1e-9)
+
+
+def circle_gcode(step: float, radius: float = 20.0) -> str:
+    """One stroke around a circle sampled every ``step`` mm (a curve turning at every point)."""
+    count = int(2 * math.pi * radius / step)
+    points = [(150 + radius * math.cos(a), 150 + radius * math.sin(a))
+              for a in np.linspace(0, 2 * math.pi, count + 1)]
+    lines = [f"X{x:.3f} Y{y:.3f}" for x, y in points[1:]]
+    return (f"G21 G90\nG0 Z3\nX{points[0][0]:.3f} Y{points[0][1]:.3f}\nG1 Z-0.3 F600\n"
+            f"{lines[0]} F1800\n" + "\n".join(lines[1:]) + "\nG0 Z3\nX0 Y0\nM2\n")
+
+
+def grbl_busy(device, text: str, **options) -> float:
+    port = careful_port(device, **options)
+    careful_send(port, device, text.encode())
+    assert port.simulator.stats.bytes_lost == 0
+    return port.simulator.stats.busy_time
+
+
+def test_simulated_grbl_plans_with_its_buffer_so_never_beats_the_estimate():
+    """GRBL plans corners over the blocks in its planner: as fast as the estimate (unlimited
+    look-ahead) when the buffer reaches far enough, a little slower when not, every
+    segment from rest to rest with room for one block."""
+    device = load_device("grbl")
+    fab = fabricate(load_design(ROOT / "jobs" / "vase-svg.toml"), device, spec())
+    run = wanted(device, fab)
+    total = estimate(run, device).total
+    assert grbl_busy(device, fab.program.text) == pytest.approx(total, rel=1e-9)
+    one_block = grbl_busy(device, fab.program.text, planner=2)
+    assert one_block == pytest.approx(rest_to_rest(run, device, segments), rel=1e-9)
+    assert total < one_block < 1.05 * total
+    for step, slower in ((0.5, 1.0), (0.05, 1.1)):  # 15 blocks: 7.5 mm, or less than the 0.9 mm to stop
+        text = circle_gcode(step)
+        total = estimate(interpret(text, device), device).total
+        busy = grbl_busy(device, text)
+        assert total * (1 - 1e-9) <= busy <= slower * total * (1 + 1e-9)
+        assert (busy > total * (1 + 1e-3)) == (slower > 1)
+        assert grbl_busy(device, text, planner=64) == pytest.approx(total, rel=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.lists(st.tuples(st.integers(10, 60), st.integers(10, 60)), min_size=1, max_size=30),
+                min_size=1, max_size=3),
+       st.integers(2, 20), st.sampled_from([0.5, 2.0, 0.1]))
+def test_simulated_grbl_between_the_estimate_and_stopping_everywhere(strokes, planner, scale):
+    device = load_device("grbl")
+    text = "G21 G90\nG0 Z3\n"
+    for stroke in strokes:
+        (x, y), rest = stroke[0], stroke[1:]
+        text += f"X{x * scale:g} Y{y * scale:g}\nG1 Z-0.3 F600\nX{x * scale:g} F1800\n"
+        text += "".join(f"X{x * scale:g} Y{y * scale:g}\n" for x, y in rest) + "G0 Z3\n"
+    run = interpret(text, device)
+    busy = grbl_busy(device, text, planner=planner)
+    assert estimate(run, device).total * (1 - 1e-9) <= busy
+    assert busy <= rest_to_rest(run, device, segments) * (1 + 1e-9)
+
+
+def test_grbl_status_while_drawing_a_planned_move():
+    port, g = grbl()
+    port.read_until(b"help]\r\n")
+    g.send("G1 Z-0.3 F600\nG1 X50 F1800\nY50\n")  # 90 degrees: the corner passes at 3.47 mm/s
+    pause(port, 1.0)
+    running = g.status()
+    assert running.startswith(b"<Run|MPos:") and running.endswith(b",-0.300|FS:1800,0>")
+    x = float(running.split(b"MPos:")[1].split(b",")[0])
+    assert 0 < x < 50
+    port.simulator.run_until_idle()
+    assert g.status() == b"<Idle|MPos:50.000,50.000,-0.300|FS:0,0>"
+    # 0.2 s pen down, then each 50 mm side: 0.06 s to 30 mm/s, 0.0530513 s to the corner speed
+    # (0.9 + 0.8879289 mm) and 48.2120711 mm at 30 mm/s, twice
+    side = 0.06 + 0.0530513 + 48.2120711 / 30
+    assert port.simulator.stats.busy_time == pytest.approx(0.2 + 2 * side, abs=1e-6)
 
 
 def test_fast_time_follows_the_wall_clock():

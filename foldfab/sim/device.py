@@ -14,7 +14,9 @@ Timing model
 * The device takes bytes out of its buffer as it executes them (HPGL: one
   instruction, or one coordinate pair, at a time, when the previous move has ended;
   GRBL: a line at a time while its planner has room); moves, pen lifts and dwells
-  take the durations of :mod:`foldfab.sim.motion` (the estimate's model).
+  take the durations of :mod:`foldfab.sim.motion` (the estimate's model).  A block that
+  arrives in an empty planner starts once the device has read what it can at that
+  moment (GRBL's auto cycle start), so a planned block sees the moves read with it.
 * Replies cross the wire the other way at the same rate, one byte after another from
   the moment the device produces them: the host can read a byte once it has arrived
   (an ``ok`` at 9600 baud comes 4 ms after GRBL sends it, a status report 40 ms).  A
@@ -39,7 +41,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from foldfab.sim.clock import Clock
-from foldfab.sim.motion import Block
+from foldfab.sim.motion import Block, plan_start
 from foldfab.sim.record import PauseRecord, SimStats, recording_json, recording_svg
 
 if TYPE_CHECKING:
@@ -83,6 +85,7 @@ class Simulator:
         self.reply_wire_free = 0.0  # when the device's next reply byte can start on the wire
         self.planner: deque[Block] = deque()
         self.block_end: float | None = None  # when the running head block ends
+        self.speed2 = 0.0  # squared speed (mm²/s²) at the end of the last block started
         self.remaining: float | None = None  # of the head block, while frozen
         self.frozen: set[str] = set()  # "stall", "hold"
         self.deferred: list[Callable[[], None]] = []  # answers held back by a stall
@@ -220,6 +223,8 @@ class Simulator:
         """Run the device up to virtual time ``t``."""
         while True:
             self._work()
+            if self.planner and self.block_end is None and not self.frozen:
+                self._start_head()
             te = self.next_event()
             if te > t:
                 break
@@ -248,7 +253,7 @@ class Simulator:
         if block.done:
             block.done()
         if self.planner and not self.frozen:
-            self.block_end = self.t + self.planner[0].duration
+            self._start_head()
 
     def _completed(self, block: Block) -> None:
         self.position = block.end
@@ -271,9 +276,18 @@ class Simulator:
         self.t = until
 
     def _enqueue(self, block: Block) -> None:
+        """Add a block to the planner (it starts in :meth:`advance` if the planner was idle)."""
         self.planner.append(block)
-        if len(self.planner) == 1 and not self.frozen:
-            self.block_end = self.t + block.duration
+
+    def _start_head(self) -> None:
+        """The head block starts now: a planned one gets its duration (:func:`plan_start`)."""
+        block = self.planner[0]
+        if block.planned:
+            block.duration, self.speed2 = plan_start(self.planner, self.speed2,
+                                                     self.device.motion.acceleration)
+        else:
+            self.speed2 = 0.0
+        self.block_end = self.t + block.duration
 
     def _freeze(self, reason: str) -> None:
         if not self.frozen and self.block_end is not None:
@@ -283,12 +297,15 @@ class Simulator:
     def _thaw(self, reason: str) -> None:
         self.frozen.discard(reason)
         if not self.frozen and self.planner and self.block_end is None:
-            left = self.remaining if self.remaining is not None else self.planner[0].duration
-            self.block_end, self.remaining = self.t + left, None
+            if self.remaining is None:
+                self._start_head()
+            else:
+                self.block_end, self.remaining = self.t + self.remaining, None
 
     def _clear_planner(self) -> None:
         self.planner.clear()
         self.block_end = self.remaining = None
+        self.speed2 = 0.0
 
     def head(self) -> tuple[tuple[float, float], Block | None]:
         """Where the head is now (device units) and the block it is executing, if any."""
@@ -296,8 +313,10 @@ class Simulator:
             return self.position, None
         block = self.planner[0]
         left = self.remaining if self.block_end is None else self.block_end - self.t
-        left = block.duration if left is None else left
-        done = 1.0 - left / block.duration if block.duration > 0 else 1.0
+        if left is None:  # not started
+            done = 0.0
+        else:
+            done = 1.0 - left / block.duration if block.duration > 0 else 1.0
         (x0, y0), (x1, y1) = block.start, block.end
         return (x0 + (x1 - x0) * done, y0 + (y1 - y0) * done), block
 

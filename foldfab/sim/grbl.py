@@ -207,10 +207,12 @@ class GrblController(Simulator):
         self.reply("ok")
 
     def _settings(self) -> list[str]:
-        """``$$``: GRBL's defaults with the profile's speeds, acceleration and reach."""
+        """``$$``: GRBL's defaults with the profile's speeds, acceleration, junction deviation
+        and reach."""
         motion, (w, h) = self.device.motion, self.device.plottable_area
         z_rate = (self.device.gcode.z_speed or motion.travel_speed) * 60
-        values = {0: 10, 1: 25, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0, 10: 1, 11: 0.010, 12: 0.002,
+        deviation = 0.010 if motion.junction_deviation is None else motion.junction_deviation
+        values = {0: 10, 1: 25, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0, 10: 1, 11: deviation, 12: 0.002,
                   13: 0, 20: 0, 21: 0, 22: 0, 30: 1000, 31: 0, 32: 0,
                   100: 250, 101: 250, 102: 250,
                   110: motion.travel_speed * 60, 111: motion.travel_speed * 60, 112: z_rate,

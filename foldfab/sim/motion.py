@@ -2,26 +2,41 @@
 
 A simulator runs :class:`~foldfab.interpret.HPGLMachine` or
 :class:`~foldfab.interpret.GcodeMachine` with the :class:`Timed` mixin: each pen move,
-pen down and pen up the machine makes is handed to the simulator as a :class:`Block`
-with its duration, which the simulator executes on its virtual clock.
+pen down and pen up the machine makes is handed to the simulator as a :class:`Block`,
+which the simulator executes on its virtual clock.
 
-Durations follow :mod:`foldfab.estimate` exactly, so a simulated run's busy time equals
-the estimate of the same program: a pen-up move is one trapezoid at the travel speed; a
-pen-down move that continues the previous one within ``CONTINUATION_ANGLE`` extends
-that straight run (it costs ``T(run + l) - T(run)``, so the run costs ``T(run)`` in
-all, as the estimate counts it) and any other starts a new run; each pen down and pen
-up costs ``pen_lift_time``.  A block also carries a recording mark, so a simulator can
-tell which strokes are drawn once the block has started.
+Durations follow :mod:`foldfab.estimate`'s model for the device.  A pen-up move is one
+trapezoid at the travel speed; each pen down and pen up costs ``pen_lift_time``.
+
+* Stop at corners (no ``junction_deviation``): every block has its duration when it is
+  made, and a simulated run's busy time equals the estimate of the same program.  A
+  pen-down move that continues the previous one within ``CONTINUATION_ANGLE`` extends
+  that straight run (it costs ``T(run + l) - T(run)``, so the run costs ``T(run)`` in
+  all, as the estimate counts it) and any other starts a new run.
+* Junction speeds (a ``junction_deviation``): a pen-down move is a *planned* block that
+  carries its length, speed and the highest entry speed its junction with the move
+  before allows (:func:`~foldfab.estimate.junction_limits`, as GRBL computes it when a
+  block enters its planner).  Its duration is fixed when it starts
+  (:func:`plan_start`): it enters at the speed the block before left at, and leaves at
+  the speed a backward pass over the blocks then in the planner allows, the last of
+  which must be able to stop.  Lifts, dwells and pen-up moves start and end at rest.
+  With a short look-ahead a run takes a little longer than the estimate (which looks
+  ahead without limit), never less.
+
+A block also carries a recording mark, so a simulator can tell which strokes are drawn
+once the block has started.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
-from foldfab.estimate import CONTINUATION_ANGLE, move_times
+from foldfab.estimate import (CONTINUATION_ANGLE, junction_limits, move_times, plan_speeds,
+                              segment_times)
 from foldfab.interpret import GcodeMachine, HPGLMachine, Stroke
 
 Point = tuple[float, float]
@@ -31,18 +46,51 @@ Point = tuple[float, float]
 class Block:
     """One timed step of the machine: a move, a pen lift or a dwell."""
 
-    duration: float
+    duration: float | None
+    """Seconds; None for a planned block until it starts."""
     start: Point
     end: Point
     """Device units, for position reports."""
     feed: float
-    """mm/s while moving (0 for lifts and dwells)."""
+    """mm/s while moving (0 for lifts and dwells); a planned block's nominal speed."""
     mark: tuple[int, int]
     """Recording mark after this block: (finished strokes, points of the open stroke)."""
     done: Callable[[], None] | None = None
     """Called when the block has been executed (e.g. to send GRBL's deferred ``ok``)."""
     z: float = 0.0
     """G-code: the Z height during the block (for status reports)."""
+    planned: bool = False
+    """A pen-down move under the junction model: its speeds at both ends depend on its
+    neighbours (other blocks start and end at rest)."""
+    length: float = 0.0
+    """mm, of a planned block (zero-length ones take no time and do not stop the head)."""
+    entry_limit: float = 0.0
+    """A planned block's highest entry speed squared (mm²/s²): its junction with the move before."""
+
+
+def plan_start(blocks: Sequence[Block], entry: float, acceleration: float) -> tuple[float, float]:
+    """Duration and squared exit speed of the first of ``blocks`` (the planner, head first, a
+    planned block) when it starts at squared speed ``entry``.
+
+    Its exit speed comes from the passes of :func:`~foldfab.estimate.plan_speeds` over the
+    planned blocks behind it, up to the first block that starts at rest or the end of the
+    buffer, where the machine must be able to stop (as GRBL plans).
+    """
+    import numpy as np
+
+    head = blocks[0]
+    if not head.length:  # no time, and the speed carries on to the next move
+        return 0.0, entry
+    lengths, limits = [head.length], [entry]
+    for block in itertools.islice(blocks, 1, None):
+        if not block.planned:
+            break
+        if block.length:
+            limits.append(block.entry_limit)
+            lengths.append(block.length)
+    limits.append(0.0)
+    leave = float(plan_speeds(np.array(limits), np.array(lengths), acceleration)[1])
+    return float(segment_times(head.length, head.feed, entry, leave, acceleration)), leave
 
 
 class Timed:
@@ -53,7 +101,7 @@ class Timed:
     def start_timing(self, sink: Callable[[Block], None]) -> None:
         self.sink = sink
         self._run = 0.0  # length of the straight pen-down run so far (mm)
-        self._heading: Point | None = None
+        self._heading: Point | None = None  # direction of the last non-zero pen-down move
 
     def lift_duration(self) -> float:
         """Seconds for one pen down or pen up."""
@@ -84,8 +132,14 @@ class Timed:
             self._heading = None
             speed = motion.travel_speed
             self._emit(float(move_times(length, speed, motion.acceleration)), start, speed)
-            return
-        speed = self.stroke_meta["speed"]
+        elif motion.junction_deviation is None:
+            self._extend_run(start, dx, dy, length)
+        else:
+            self._plan(start, dx, dy, length)
+
+    def _extend_run(self, start: Point, dx: float, dy: float, length: float) -> None:
+        """A drawn move that stops at corners: it extends the straight run or starts a new one."""
+        motion, speed = self.device.motion, self.stroke_meta["speed"]
         duration = 0.0
         if length > 0:
             before = 0.0
@@ -98,6 +152,19 @@ class Timed:
             duration = float(times[1] - times[0])  # T(0) = 0
             self._heading = (dx, dy)
         self._emit(duration, start, speed)
+
+    def _plan(self, start: Point, dx: float, dy: float, length: float) -> None:
+        """A drawn move under the junction model: a planned block, timed when it starts."""
+        motion, speed = self.device.motion, self.stroke_meta["speed"]
+        limit = 0.0
+        if length > 0:
+            direction = (dx / length, dy / length)
+            if self._heading is not None:
+                limit = float(junction_limits(self._heading, direction, speed, motion.acceleration,
+                                              motion.junction_deviation))
+            self._heading = direction
+        self.sink(Block(None, start, self.position, speed, self.mark(), planned=True,
+                        length=length, entry_limit=limit))
 
     def _emit(self, duration: float, start: Point, feed: float) -> None:
         self.sink(Block(duration, start, self.position, feed, self.mark()))

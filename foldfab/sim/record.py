@@ -44,7 +44,8 @@ class SimStats:
     xoff_sent: int = 0
     xon_sent: int = 0
     busy_time: float = 0.0
-    """Moving, lifting the pen or dwelling (equals the estimate for a complete program)."""
+    """Moving, lifting the pen or dwelling (for a complete program: the estimate, or a little
+    more with junction speeds and a planner too short to look ahead as far as the estimate)."""
     starved_time: float = 0.0
     """Idle with nothing to execute while more of the job was still to come."""
     paused_time: float = 0.0
