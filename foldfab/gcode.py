@@ -18,12 +18,15 @@ and they do not refuse geometry outside the machine's reach.
 
 from __future__ import annotations
 
+import functools
 import textwrap
+
+import numpy as np
 from typing import TYPE_CHECKING
 
 from foldfab.devices import GCODE_DECIMALS
 from foldfab.errors import FoldfabError
-from foldfab.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps
+from foldfab.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps, trim_numbers
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -54,6 +57,12 @@ def write_gcode(plan: PlotPlan, device: DeviceProfile) -> Program:
     return out.builder.build()
 
 
+def _xy_words(points: np.ndarray) -> list[str]:
+    """``"X.. Y.."`` for each row of ``points`` (mm): one formatting pass for them all."""
+    template = f"X%.{GCODE_DECIMALS}f Y%.{GCODE_DECIMALS}f\n" * len(points)
+    return trim_numbers(template % tuple(points.ravel().tolist())).split("\n")[:-1]
+
+
 def _ascii(text: str) -> str:
     """Comment-safe text: printable ASCII, no parentheses (GRBL ends a comment at ')')."""
     text = text.translate({ord("("): "[", ord(")"): "]"})
@@ -68,8 +77,10 @@ class _GcodeWriter:
         self.builder = ProgramBuilder("gcode", device)
         self.motion: str | None = None
         self.feed: float | None = None
-        self.position: tuple[str, str] | None = None
+        self.position: str | None = None  # "X.. Y.." of the last move
         self.down = True  # unknown at the start: force the first lift
+        self.number = functools.cache(functools.partial(fmt_number, decimals=GCODE_DECIMALS))
+        """Text of a feed, Z height or dwell: the same few values recur at every stroke."""
 
     def line(self, text: str) -> None:
         assert len(text) <= MAX_LINE, text
@@ -83,7 +94,7 @@ class _GcodeWriter:
         head = "" if mode == self.motion else mode + " "
         tail = ""
         if feed is not None and feed != self.feed:
-            tail = " F" + fmt_number(feed, 3)
+            tail = " F" + self.number(feed)
             self.feed = feed
         self.motion = mode
         self.line(head + words + tail)
@@ -91,7 +102,7 @@ class _GcodeWriter:
     def pen_command(self, command: str) -> None:
         self.line(command)
         if self.device.motion.pen_lift_time > 0:
-            self.line("G4 P" + fmt_number(self.device.motion.pen_lift_time, 3))
+            self.line("G4 P" + self.number(self.device.motion.pen_lift_time))
 
     def pen_up(self) -> None:
         if not self.down:
@@ -100,24 +111,24 @@ class _GcodeWriter:
         if isinstance(up, str):
             self.pen_command(up)
         else:
-            self.move("G0", "Z" + fmt_number(up, GCODE_DECIMALS))
+            self.move("G0", "Z" + self.number(up))
         self.down = False
 
     def pen_down(self, down: float | str) -> None:
         if isinstance(down, str):
             self.pen_command(down)
         else:
-            self.move("G1", "Z" + fmt_number(down, GCODE_DECIMALS), self.device.gcode.z_speed * 60)
+            self.move("G1", "Z" + self.number(down), self.device.gcode.z_speed * 60)
         self.down = True
 
-    def travel(self, xy: tuple[str, str]) -> None:
+    def travel(self, xy: str) -> None:
         if xy != self.position:
-            self.move("G0", f"X{xy[0]} Y{xy[1]}")
+            self.move("G0", xy)
             self.position = xy
 
     def park(self) -> None:
         self.pen_up()
-        self.travel(tuple(fmt_number(v, GCODE_DECIMALS) for v in self.device.motion.park))
+        self.travel(_xy_words(np.asarray([self.device.motion.park]))[0])
 
     def sweep(self, sweep: Sweep) -> None:
         self.builder.start(sweep)
@@ -131,11 +142,16 @@ class _GcodeWriter:
             )
         down = self.device.layers[sweep.name].pen_down
         feed = sweep.tool.speed * 60
+        words = _xy_words(np.concatenate(sweep.lines)) if sweep.lines else []
+        start = 0
         for line in sweep.lines:
-            points = [(fmt_number(x, GCODE_DECIMALS), fmt_number(y, GCODE_DECIMALS)) for x, y in line.tolist()]
+            points = words[start:start + len(line)]
+            start += len(points)
             self.travel(points[0])
             self.pen_down(down)
-            for x, y in points[1:]:
-                self.move("G1", f"X{x} Y{y}", feed)
+            if len(points) > 1:
+                self.move("G1", points[1], feed)
+            if len(points) > 2:  # G1 and F are modal: the rest are bare coordinates
+                self.builder.write("\n".join(points[2:]) + "\n")
             self.position = points[-1]
             self.pen_up()

@@ -551,10 +551,10 @@ def _read_code(raw: str) -> tuple[str, tuple, tuple, str, tuple]:
         code = _COMMENT.sub(" ", raw).upper()
     else:  # most lines: no comment to look for
         comments, code = (), raw.upper()
-    words = tuple((letter, float(number)) for letter, number in _WORD.findall(code))
+    words = tuple([(letter, float(number)) for letter, number in _WORD.findall(code)])
     unsupported = tuple(f"{letter}{value:g}" for letter, value in words
                         if (letter == "G" and value not in SUPPORTED_G)
-                        or (letter == "M" and value not in SUPPORTED_M))
+                        or (letter == "M" and value not in SUPPORTED_M)) if "G" in code or "M" in code else ()
     unreadable = "" if _WORDS_ONLY.fullmatch(code) else _WORD.sub(" ", code).strip()
     return code, words, comments, unreadable, unsupported
 
@@ -581,12 +581,13 @@ class GcodeMachine(Machine):
     def run(self, text: str) -> Interpretation:
         offset = 0
         self.deferred = []
+        apply, size = self.apply, len(text)
         for raw in text.split("\n"):
             end = offset + len(raw) + 1
             self.at = offset
-            self.execute(raw, offset, min(end, len(text)))
+            apply(read_gcode_line(raw, offset), min(end, size))
             offset = end
-        self.at = len(text)
+        self.at = size
         return self.finish()
 
     def execute(self, raw: str, offset: int, end: int) -> None:
@@ -600,14 +601,17 @@ class GcodeMachine(Machine):
         if not line.words:
             self.comments.extend(c.strip() for c in line.comments)
             return
-        values = {}
-        for letter, value in line.words:
-            if letter == "G":
-                self.g_word(value)
-            elif letter == "M":
-                values.setdefault("M", []).append(value)
-            else:
-                values[letter] = value
+        if "G" in line.code or "M" in line.code:
+            values = {}
+            for letter, value in line.words:
+                if letter == "G":
+                    self.g_word(value)
+                elif letter == "M":
+                    values.setdefault("M", []).append(value)
+                else:
+                    values[letter] = value
+        else:  # most lines: coordinates and a feed
+            values = dict(line.words)
         if "F" in values:
             self.feed = values["F"] * self.scale / 60
         if "S" in values:
