@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 from foldfab.devices import GCODE_DECIMALS
 from foldfab.errors import FoldfabError
-from foldfab.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps, trim_numbers
+from foldfab.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -58,9 +58,8 @@ def write_gcode(plan: PlotPlan, device: DeviceProfile) -> Program:
 
 
 def _xy_words(points: np.ndarray) -> list[str]:
-    """``"X.. Y.."`` for each row of ``points`` (mm): one formatting pass for them all."""
-    template = f"X%.{GCODE_DECIMALS}f Y%.{GCODE_DECIMALS}f\n" * len(points)
-    return trim_numbers(template % tuple(points.ravel().tolist())).split("\n")[:-1]
+    """``"X.. Y.."`` for each row of ``points`` (mm)."""
+    return [f"X{fmt_number(x, GCODE_DECIMALS)} Y{fmt_number(y, GCODE_DECIMALS)}" for x, y in points.tolist()]
 
 
 def _ascii(text: str) -> str:

@@ -20,7 +20,6 @@ expands ``passes`` and inserts tool-change pauses for devices without a pen chan
 from __future__ import annotations
 
 import bisect
-import re
 from dataclasses import dataclass
 from operator import attrgetter
 from typing import TYPE_CHECKING, Union
@@ -217,19 +216,9 @@ def check_fits(points: np.ndarray, sheet: tuple[float, float], device: DevicePro
     )
 
 
-_TRAILING_ZEROS = re.compile(r"(\.\d*[1-9])0+(?!\d)|\.0+(?!\d)")
-_NEGATIVE_ZERO = re.compile(r"(?<![\d.])-0(?![\d.])")
-
-
-def trim_numbers(text: str) -> str:
-    """``text`` with every fixed-point number written shortest: "1.500" -> "1.5", "-0.000" -> "0".
-
-    One pass over a whole block of numbers formatted with ``%.Nf`` is how the G-code
-    writer formats a sweep's coordinates at C speed.
-    """
-    return _NEGATIVE_ZERO.sub("0", _TRAILING_ZEROS.sub(r"\1", text))
-
-
 def fmt_number(value: float, decimals: int) -> str:
     """Shortest decimal text for ``value`` rounded to ``decimals`` places ("-0" -> "0")."""
-    return trim_numbers(f"{value:.{decimals}f}")
+    text = "%.*f" % (decimals, value)
+    if decimals:
+        text = text.rstrip("0").rstrip(".")
+    return "0" if text == "-0" else text
