@@ -11,7 +11,8 @@ from hypothesis import strategies as st
 from foldfab import optimize
 from foldfab.design import build_design
 from foldfab.job import parse_job
-from foldfab.optimize import _Onward, _onward, _reloop, _run, _simplify, _sort, _tiles
+from foldfab.optimize import (KEPT_WHOLE_POINTS, _kept_whole, _Onward, _onward, _reloop, _run, _simplify,
+                              _sort, _tiles)
 from foldfab.scoring import crease_lines
 
 
@@ -91,6 +92,31 @@ def test_simplify_sends_only_bent_lines_to_vpype_and_keeps_the_order():
     assert out[0] is straight[0] and out[2] is straight[1]  # not converted at all
     assert [p.tolist() for p in (out[1], out[3])] == [[0, 10, 10 + 10j], [1 + 1j, 3 + 3j]]
     assert [p.tolist() for p in out] == [p.tolist() for p in _run("linesimplify --tolerance 0.01", lines)]
+
+
+small = st.integers(-40, 40).map(lambda v: v / 8)  # coarse: collinear and near-collinear points are common
+bent_line = st.lists(st.builds(complex, small, small), min_size=3, max_size=8).map(lambda p: np.array(p))
+
+
+@settings(max_examples=300, deadline=None)
+@given(lines=st.lists(bent_line, min_size=1, max_size=12), tolerance=st.sampled_from([0.01, 0.1, 0.3, 1.0]))
+def test_lines_judged_whole_are_those_vpype_leaves_alone(lines, tolerance):
+    """Skipping the lines _kept_whole picks changes nothing: vpype's linesimplify returns them as
+    they are, and _simplify gives what linesimplify over all the lines gives."""
+    whole = _kept_whole(lines, tolerance)
+    everything = _run(f"linesimplify --tolerance {tolerance}", lines)
+    for line, judged, simplified in zip(lines, whole, everything, strict=True):
+        if judged:
+            assert simplified.tolist() == line.tolist()
+    assert [p.tolist() for p in _simplify(lines, tolerance)] == [p.tolist() for p in everything]
+
+
+def test_kept_whole_skips_zigzags_and_not_what_could_shorten():
+    zigzag = np.array([0, 1 + 1j, 2, 3 + 1j])
+    nearly_straight = np.array([0, 1 + 0.005j, 2, 3 + 1j])  # point 1 is 0.005 from chord 0-2
+    closed = np.array([0, 1, 1j, 0])  # a chord of zero length
+    long_line = np.arange(KEPT_WHOLE_POINTS + 1) * (1 + 0j) + 1j * (np.arange(KEPT_WHOLE_POINTS + 1) % 2)
+    assert _kept_whole([zigzag, nearly_straight, closed, long_line], 0.01).tolist() == [True, False, False, False]
 
 
 def test_each_tile_starts_at_the_line_nearest_where_the_last_one_ended():
