@@ -112,4 +112,5 @@ if __name__ == "__main__":
     cache_foldfab_bytecode()
     travel_table()
     estimate_table()
+    estimate_table("grbl")
     export_times()
