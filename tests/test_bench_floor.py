@@ -1,0 +1,62 @@
+"""The floor that benchmarks/bench_fabrication.py reports plans against must be one no order
+of the strokes can beat: checked against every order and direction of small random sets."""
+
+from __future__ import annotations
+
+import itertools
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from foldfab.devices import load_device
+from foldfab.estimate import move_times
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+from bench_fabrication import travel_floor  # noqa: E402
+
+DEVICE = load_device("graphtec-ce6000")
+coordinate = st.integers(0, 300).map(float)
+end = st.tuples(coordinate, coordinate)
+stroke = st.tuples(end, end, st.sampled_from(["valley", "mountain"]))
+
+
+def best_travel(strokes, park: complex) -> float:
+    """The least travel time over every order (layers in order) and direction of ``strokes``."""
+    layers = list(dict.fromkeys(s.layer for s in strokes))
+    motion = DEVICE.motion
+    best = np.inf
+    for order in itertools.permutations(strokes):
+        if [layers.index(s.layer) for s in order] != sorted(layers.index(s.layer) for s in order):
+            continue
+        for flips in itertools.product((False, True), repeat=len(order)):
+            pen, gaps = np.array([park.real, park.imag]), []
+            for s, flip in zip(order, flips):
+                a, b = (s.points[-1], s.points[0]) if flip else (s.points[0], s.points[-1])
+                gaps.append(np.hypot(*(a - pen)))
+                pen = b
+            gaps.append(np.hypot(pen[0] - park.real, pen[1] - park.imag))
+            best = min(best, float(move_times(np.array(gaps), motion.travel_speed, motion.acceleration).sum()))
+    return best
+
+
+@settings(max_examples=40, deadline=None)
+@given(raw=st.lists(stroke, min_size=1, max_size=5), park=end)
+def test_no_order_of_the_strokes_travels_less_than_the_floor(raw, park):
+    strokes = [SimpleNamespace(points=np.array([a, b]), layer=layer) for a, b, layer in raw]
+    floor = travel_floor(strokes, complex(*park), DEVICE)
+    assert floor <= best_travel(strokes, complex(*park)) + 1e-9
+
+
+@settings(max_examples=40, deadline=None)
+@given(raw=st.lists(stroke, min_size=1, max_size=8), park=end)
+def test_the_floor_counts_the_way_out_and_home(raw, park):
+    """Whatever it relaxes, the floor still leaves the park position once and comes back once."""
+    strokes = [SimpleNamespace(points=np.array([a, b]), layer=layer) for a, b, layer in raw]
+    nearest = min(np.hypot(*(s.points - np.array(park)).T).min() for s in strokes)
+    motion = DEVICE.motion
+    assert travel_floor(strokes, complex(*park), DEVICE) >= \
+        2 * float(move_times(np.array([nearest]), motion.travel_speed, motion.acceleration)[0]) - 1e-9
