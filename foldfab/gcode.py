@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import functools
 import textwrap
+from typing import TYPE_CHECKING
 
 import numpy as np
-from typing import TYPE_CHECKING
 
 from foldfab.devices import GCODE_DECIMALS
 from foldfab.errors import FoldfabError
