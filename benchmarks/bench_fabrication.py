@@ -88,6 +88,52 @@ def travel_floor(strokes, park: complex, device) -> float:
     return float(cost[rows, cols].sum())
 
 
+EXACT_STROKES = 18
+"""Largest layer that :func:`optimal_travel` orders exactly (its work doubles per stroke)."""
+
+
+def optimal_travel(strokes, park: complex, device) -> float | None:
+    """Seconds of pen-up travel of the best order of these strokes (layers in order, each
+    open stroke either way round, a closed one started at any vertex), or None when a layer
+    has more than :data:`EXACT_STROKES` strokes.
+
+    Held-Karp dynamic programming over the subsets of each layer, each stroke in both
+    directions, carried from layer to layer by the cost of ending at each stroke end.
+    """
+    import numpy as np
+
+    motion = device.motion
+
+    def cost(ends, starts):  # [a, b]: seconds from end a to start b
+        gaps = np.hypot(*(ends[:, None, :] - starts[None, :, :]).transpose(2, 0, 1))
+        return move_times(gaps, motion.travel_speed, motion.acceleration)
+
+    ends, spent = np.array([[park.real, park.imag]]), np.zeros(1)  # where the pen may be, at what cost
+    for name in dict.fromkeys(s.layer for s in strokes):
+        lines = [s.points for s in strokes if s.layer == name]
+        if len(lines) == 1 and len(lines[0]) > 3 and np.allclose(lines[0][0], lines[0][-1]):
+            ring = lines[0][:-1]  # a closed stroke ends where it starts
+            ends, spent = ring, (spent[:, None] + cost(ends, ring)).min(axis=0)
+            continue
+        if len(lines) > EXACT_STROKES:
+            return None
+        starts = np.array([p for line in lines for p in (line[0], line[-1])])  # state 2i + d
+        finish = np.array([p for line in lines for p in (line[-1], line[0])])
+        states, count = len(starts), len(lines)
+        stroke = np.arange(states) // 2
+        best = np.full((1 << count, states), np.inf)
+        best[1 << stroke, np.arange(states)] = (spent[:, None] + cost(ends, starts)).min(axis=0)
+        step = cost(finish, starts)
+        for mask in range(1, 1 << count):
+            reach = (best[mask][:, None] + step).min(axis=0)  # from any end state of mask to each start
+            free = np.flatnonzero((mask >> stroke) & 1 == 0)
+            target = mask | (1 << stroke[free])
+            best[target, free] = np.minimum(best[target, free], reach[free])
+        ends, spent = finish, best[-1]
+    home = np.hypot(ends[:, 0] - park.real, ends[:, 1] - park.imag)
+    return float((spent + move_times(home, motion.travel_speed, motion.acceleration)).min())
+
+
 def drawing_floor(run, device) -> float:
     """Seconds of drawing and pen lifts of these strokes, each closed one started at its
     sharpest corner: a loop started part-way along a straight edge splits that edge into
@@ -108,29 +154,33 @@ def drawing_floor(run, device) -> float:
 
 
 def over_floor(design, device, spec) -> tuple:
-    """The estimate of ``design``'s plan, its floor (see above) and the share over the floor."""
+    """The estimate of ``design``'s plan, the share by which it exceeds the floor (see above),
+    and by which it exceeds the best order of its strokes (None where that is not computed)."""
     fab = fabricate(design, device, spec)
     run = interpret(fab.program, device, fab.plan.sheet)
     est = estimate(run, device)
-    floor = (min(est.draw_time + est.lift_time, drawing_floor(run, device))
-             + travel_floor(run.strokes, park_position(device, fab.plan.sheet), device))
-    return est, floor, 100 * (est.total / floor - 1)
+    park = park_position(device, fab.plan.sheet)
+    floor = min(est.draw_time + est.lift_time, drawing_floor(run, device)) + travel_floor(run.strokes, park, device)
+    best = optimal_travel(run.strokes, park, device)
+    optimal = None if best is None else est.total - est.travel_time + best
+    return est, 100 * (est.total / floor - 1), None if optimal is None else 100 * (est.total / optimal - 1)
 
 
 def estimate_table(device_name: str = "graphtec-ce6000") -> None:
     device = load_device(device_name)
     print(f"\nestimated plot time on {device_name} vs the lower bound (drawn length at draw speed + "
-          "unavoidable pen lifts)\nand vs the floor of any order of the same strokes (their drawing time + "
-          "lifts + unavoidable travel)")
+          "unavoidable pen lifts), the floor of any order\nof the same strokes (their drawing time + lifts + "
+          "unavoidable travel) and their best order (exact, for layers of up to 18 strokes)")
     for name in JOBS:
         design = load_design(ROOT / "jobs" / f"{name}.toml")
         spec = parse_fabrication({"sheet": "A3", "margin": 5, "scale": 0.5}, name)
-        est, floor, over = over_floor(design, device, spec)
-        unsorted = over_floor(design, device, dataclasses.replace(spec, optimize="none"))[2]
+        est, floor, optimal = over_floor(design, device, spec)
+        unsorted = over_floor(design, device, dataclasses.replace(spec, optimize="none"))[1]
         ramps = est.draw_time + est.lift_time - est.lower_bound  # acceleration at stroke ends and corners
+        best = "  (too large)" if optimal is None else f"  best order +{optimal:3.1f}%"
         print(f"{name:<17} estimate {est.total:6.1f} s, bound {est.lower_bound:6.1f} s "
               f"+{100 * (est.total / est.lower_bound - 1):4.1f}% (travel {est.travel_time:4.1f} s, "
-              f"ramps {ramps:4.1f} s); floor {floor:6.1f} s +{over:3.1f}% (unsorted +{unsorted:4.1f}%)")
+              f"ramps {ramps:4.1f} s); floor +{floor:3.1f}% (unsorted +{unsorted:4.1f}%){best}")
 
 
 def export_times() -> None:

@@ -1,5 +1,5 @@
-"""The floor that benchmarks/bench_fabrication.py reports plans against must be one no order
-of the strokes can beat: checked against every order and direction of small random sets."""
+"""The yardsticks benchmarks/bench_fabrication.py holds plans to, checked against every order
+and direction of small random sets: the floor no order can beat, and the exact best order."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -16,7 +17,7 @@ from foldfab.devices import load_device
 from foldfab.estimate import move_times
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
-from bench_fabrication import travel_floor  # noqa: E402
+from bench_fabrication import optimal_travel, travel_floor  # noqa: E402
 
 DEVICE = load_device("graphtec-ce6000")
 coordinate = st.integers(0, 300).map(float)
@@ -49,6 +50,28 @@ def test_no_order_of_the_strokes_travels_less_than_the_floor(raw, park):
     strokes = [SimpleNamespace(points=np.array([a, b]), layer=layer) for a, b, layer in raw]
     floor = travel_floor(strokes, complex(*park), DEVICE)
     assert floor <= best_travel(strokes, complex(*park)) + 1e-9
+
+
+@settings(max_examples=40, deadline=None)
+@given(raw=st.lists(stroke, min_size=1, max_size=5), park=end)
+def test_the_exact_order_is_the_best_of_every_order(raw, park):
+    strokes = [SimpleNamespace(points=np.array([a, b]), layer=layer) for a, b, layer in raw]
+    assert optimal_travel(strokes, complex(*park), DEVICE) == pytest.approx(best_travel(strokes, complex(*park)),
+                                                                            abs=1e-9)
+
+
+def test_the_exact_order_starts_a_closed_stroke_at_its_best_vertex():
+    """A square outline after one crease: entered at its corner nearest the crease's end,
+    left from that same corner for home."""
+    crease = SimpleNamespace(points=np.array([[0.0, 10.0], [0.0, 20.0]]), layer="valley")
+    square = np.array([[30.0, 20.0], [60.0, 20.0], [60.0, 50.0], [30.0, 50.0], [30.0, 20.0]])
+    outline = SimpleNamespace(points=square, layer="cut")
+    motion = DEVICE.motion
+    # park at the origin: out 10 mm to the crease, 30 mm to the corner (30, 20), home sqrt(30² + 20²)
+    expected = move_times(np.array([10.0, 30.0, np.hypot(30.0, 20.0)]), motion.travel_speed,
+                          motion.acceleration).sum()
+    assert optimal_travel([crease, outline], 0j, DEVICE) == pytest.approx(expected)
+    assert optimal_travel([crease] * 19, 0j, DEVICE) is None  # more strokes than it orders exactly
 
 
 @settings(max_examples=40, deadline=None)
