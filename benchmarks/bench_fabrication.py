@@ -50,6 +50,13 @@ def travel_table(device_name: str = "graphtec-ce6000") -> None:
         print(f"{name:<18}" + "".join(f"{v:>{w}.0f}" for v, w in zip(figures, (10, 26, 16, 17))))
 
 
+def closed(points) -> bool:
+    """A stroke that ends where it starts, around at least three corners: it may start at any vertex."""
+    import numpy as np
+
+    return len(points) > 3 and bool(np.allclose(points[0], points[-1]))
+
+
 def travel_floor(strokes, park: complex, device) -> float:
     """Seconds of pen-up travel that no order of these strokes within their layers can beat.
 
@@ -69,7 +76,7 @@ def travel_floor(strokes, park: complex, device) -> float:
 
     layers = {name: i for i, name in enumerate(dict.fromkeys(s.layer for s in strokes))}
     layer = np.array([layers[s.layer] for s in strokes] + [-1])  # the last row/column: park and home
-    candidates = [s.points if len(s.points) > 2 and np.allclose(s.points[0], s.points[-1])
+    candidates = [s.points if closed(s.points)
                   else s.points[[0, -1]] for s in strokes] + [np.array([[park.real, park.imag]])]
     points = np.concatenate(candidates)
     starts = np.cumsum([0] + [len(c) for c in candidates[:-1]])
@@ -111,7 +118,7 @@ def optimal_travel(strokes, park: complex, device) -> float | None:
     ends, spent = np.array([[park.real, park.imag]]), np.zeros(1)  # where the pen may be, at what cost
     for name in dict.fromkeys(s.layer for s in strokes):
         lines = [s.points for s in strokes if s.layer == name]
-        if len(lines) == 1 and len(lines[0]) > 3 and np.allclose(lines[0][0], lines[0][-1]):
+        if len(lines) == 1 and closed(lines[0]):
             ring = lines[0][:-1]  # a closed stroke ends where it starts
             ends, spent = ring, (spent[:, None] + cost(ends, ring)).min(axis=0)
             continue
@@ -143,7 +150,7 @@ def drawing_floor(run, device) -> float:
     strokes = []
     for stroke in run.strokes:
         ring = stroke.points[:-1]
-        if len(stroke.points) > 3 and np.allclose(stroke.points[0], stroke.points[-1]):
+        if closed(stroke.points):
             into, out = ring - np.roll(ring, 1, axis=0), np.roll(ring, -1, axis=0) - ring
             turn = np.abs(np.arctan2(into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0], (into * out).sum(axis=1)))
             ring = np.roll(ring, -int(turn.argmax()), axis=0)
