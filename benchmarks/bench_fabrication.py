@@ -57,6 +57,13 @@ def closed(points) -> bool:
     return len(points) > 3 and bool(np.allclose(points[0], points[-1]))
 
 
+def gaps(ends, starts):
+    """Distances [a, b] from each point of ``ends`` (n, 2) to each of ``starts`` (m, 2)."""
+    import numpy as np
+
+    return np.hypot(*(ends[:, None, :] - starts[None, :, :]).transpose(2, 0, 1))
+
+
 def travel_floor(strokes, park: complex, device) -> float:
     """Seconds of pen-up travel that no order of these strokes within their layers can beat.
 
@@ -80,10 +87,9 @@ def travel_floor(strokes, park: complex, device) -> float:
                   else s.points[[0, -1]] for s in strokes] + [np.array([[park.real, park.imag]])]
     points = np.concatenate(candidates)
     starts = np.cumsum([0] + [len(c) for c in candidates[:-1]])
-    gaps = np.hypot(*(points[:, None, :] - points[None, :, :]).transpose(2, 0, 1))
-    gaps = np.minimum.reduceat(np.minimum.reduceat(gaps, starts, axis=0), starts, axis=1)
+    nearest = np.minimum.reduceat(np.minimum.reduceat(gaps(points, points), starts, axis=0), starts, axis=1)
     motion = device.motion
-    cost = move_times(gaps, motion.travel_speed, motion.acceleration)  # [j, i]: from j to i
+    cost = move_times(nearest, motion.travel_speed, motion.acceleration)  # [j, i]: from j to i
     last = layer[:-1].max()
     before, after = layer[:, None], layer[None, :]
     allowed = ((before == after) | (before == after - 1)) & (before >= 0) & (after >= 0)
@@ -112,8 +118,7 @@ def optimal_travel(strokes, park: complex, device) -> float | None:
     motion = device.motion
 
     def cost(ends, starts):  # [a, b]: seconds from end a to start b
-        gaps = np.hypot(*(ends[:, None, :] - starts[None, :, :]).transpose(2, 0, 1))
-        return move_times(gaps, motion.travel_speed, motion.acceleration)
+        return move_times(gaps(ends, starts), motion.travel_speed, motion.acceleration)
 
     ends, spent = np.array([[park.real, park.imag]]), np.zeros(1)  # where the pen may be, at what cost
     for name in dict.fromkeys(s.layer for s in strokes):
@@ -149,8 +154,8 @@ def drawing_floor(run, device) -> float:
 
     strokes = []
     for stroke in run.strokes:
-        ring = stroke.points[:-1]
         if closed(stroke.points):
+            ring = stroke.points[:-1]
             into, out = ring - np.roll(ring, 1, axis=0), np.roll(ring, -1, axis=0) - ring
             turn = np.abs(np.arctan2(into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0], (into * out).sum(axis=1)))
             ring = np.roll(ring, -int(turn.argmax()), axis=0)
