@@ -38,41 +38,61 @@ def _points(cp: CreasePattern, points: np.ndarray | None) -> np.ndarray:
 
 
 def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
-    """``edges`` (E, 2 indices into ``points``) drawn with as few pen lifts as a graph allows.
+    """``edges`` (E, 2 indices into ``points``) drawn with as few pen lifts as a graph allows,
+    going straight on through crossings.
 
     A connected set of edges with ``2k`` vertices of odd degree needs ``k`` strokes (one
     closed loop if ``k`` is 0), and that many suffice (Euler).  Hierholzer's algorithm
     finds them: an extra vertex joined to every odd vertex makes every degree even; the
     Euler circuits of that graph, cut where they pass the extra vertex, are the strokes.
-    Closed loops repeat their first point.  Deterministic (neighbours in index order).
+    At every vertex the walk leaves by the edge :func:`_straight_pairs` pairs with the one
+    it came in by, while that edge is unused: creases that cross are drawn through rather
+    than turned at, and a plotter slows down or stops at every turn.  Closed loops repeat
+    their first point.  Deterministic (otherwise neighbours in index order).
     """
     count = len(points)
     odd = np.flatnonzero(np.bincount(edges.ravel(), minlength=count) % 2)
     extra = count
     pairs = np.concatenate([edges.reshape(-1, 2), np.column_stack([odd, np.full(len(odd), extra)])])
-    # adjacency lists side by side (CSR): each vertex's neighbours in index order, then by edge
+    # adjacency lists side by side (CSR): each vertex's neighbours in index order, then by edge;
+    # slot k leaves vertex ends[order[k]] by edge ids[order[k]]
     ends, others = pairs.T.ravel(), pairs[:, ::-1].T.ravel()
     ids = np.tile(np.arange(len(pairs)), 2)
     order = np.lexsort((ids, others, ends))
     offsets = np.searchsorted(ends[order], np.arange(count + 2))
-    neighbour, edge = others[order].tolist(), ids[order].tolist()
+    slot = np.empty_like(order)
+    slot[order] = np.arange(len(order))
+    arrive = slot[(order + len(pairs)) % len(order)]  # the slot of the same edge at its other end
+    at, to = ends[order], others[order]
+    steps = np.where(to < extra, np.append(points, 0)[to] - np.append(points, 0)[at], 0)
+    lengths = np.abs(steps)
+    partner = _straight_pairs(at, np.divide(steps, lengths, out=np.zeros_like(steps), where=lengths > 0),
+                              to < extra, extra)
+    fake = len(order)  # the slot the walk "arrives" by at its start: it has no partner
+    edge, arrive, partner = ids[order].tolist(), arrive.tolist(), partner.tolist() + [-1]
+    vertex = at.tolist() + [extra]
     cursor, stop = offsets[:-1].tolist(), offsets[1:].tolist()
     used = [False] * len(pairs)
     walks: list[list[int]] = []
     starts = ([extra] if len(odd) else []) + np.sort(edges.min(axis=1)).tolist()
     for start in starts:
-        circuit, stack = [], [start]
+        vertex[fake] = start
+        circuit, stack = [], [fake]  # the slots the walk arrived by
         while stack:  # Hierholzer: extend the walk; at a dead end, emit the vertex and back up
-            v = stack[-1]
-            i, last = cursor[v], stop[v]
-            while i < last and used[edge[i]]:
-                i += 1
-            cursor[v] = i
-            if i < last:
-                used[edge[i]] = True
-                stack.append(neighbour[i])
-            else:
-                circuit.append(stack.pop())
+            came = stack[-1]
+            i = partner[came]
+            if i < 0 or used[edge[i]]:
+                v = vertex[came]
+                i, last = cursor[v], stop[v]
+                while i < last and used[edge[i]]:
+                    i += 1
+                cursor[v] = i
+                if i == last:
+                    circuit.append(v)
+                    stack.pop()
+                    continue
+            used[edge[i]] = True
+            stack.append(arrive[i])
         piece: list[int] = []
         for v in circuit + [extra]:
             if v == extra:
@@ -82,6 +102,34 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
             else:
                 piece.append(v)
     return [points[walk] for walk in walks]
+
+
+def _straight_pairs(at: np.ndarray, unit: np.ndarray, real: np.ndarray, extra: int) -> np.ndarray:
+    """Pair the edge ends (slots) at each vertex to go as straight on as possible.
+
+    ``at`` is each slot's vertex (sorted), ``unit`` its direction away from the vertex
+    (complex), ``real`` whether its edge is one of the graph's, not one to the ``extra``
+    vertex, whose slots are left unpaired.  Greedy per vertex: the two free slots whose
+    directions are most nearly opposite pair first; an edge to the extra vertex pairs
+    last, so it takes the edge left over at an odd vertex.  Returns each slot's partner
+    slot (-1 for none).
+    """
+    size = len(at)
+    partner = np.full(size, -1, dtype=np.intp)
+    later = np.where(at < extra, np.searchsorted(at, at, side="right") - np.arange(size) - 1, 0)
+    first = np.repeat(np.arange(size), later)  # every pair of slots at one vertex: first < second
+    second = first + 1 + np.arange(len(first)) - np.repeat(np.cumsum(later) - later, later)
+    cost = np.where(real[first] & real[second], (unit[first] * unit[second].conj()).real, 2.0)
+    order = np.lexsort((second, first, cost, at[first]))
+    first, second = first[order], second[order]
+    free = np.ones(size, dtype=bool)
+    while len(first):  # each round pairs the best pair of free slots at every vertex
+        keep = free[first] & free[second]
+        first, second = first[keep], second[keep]
+        best = np.flatnonzero(np.diff(at[first], prepend=-1))
+        partner[first[best]], partner[second[best]] = second[best], first[best]
+        free[first[best]] = free[second[best]] = False
+    return partner
 
 
 def perforate(segments: np.ndarray, pattern: tuple[float, ...], clearance: float) -> np.ndarray:

@@ -61,12 +61,15 @@ def _components(edges: list[tuple[int, int]]) -> dict[int, list[tuple[int, int]]
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 11), st.integers(0, 11)).filter(lambda e: e[0] != e[1]), max_size=40))
-def test_chains_walk_every_edge_once_with_the_fewest_strokes(edges):
+@given(st.lists(st.tuples(st.integers(0, 11), st.integers(0, 11)).filter(lambda e: e[0] != e[1]), max_size=40),
+       st.booleans())
+def test_chains_walk_every_edge_once_with_the_fewest_strokes(edges, collinear):
     """Euler: a connected set of edges with 2k odd vertices takes k strokes (one loop if k is 0)."""
-    points = np.arange(12) * (1 + 0.37j)  # distinct points, so a stroke's points name its vertices
+    # distinct points, on one line (every turn is straight on or a reversal) or on a spiral
+    points = np.arange(12) * (1 + 0.37j) if collinear else (np.arange(12) + 1) * np.exp(2.4j * np.arange(12))
+    name = {complex(p): i for i, p in enumerate(points)}
     lines = _chains(np.array(edges, dtype=np.intp).reshape(-1, 2), points)
-    walked = sorted(tuple(sorted((int(round(a.real)), int(round(b.real)))))
+    walked = sorted(tuple(sorted((name[complex(a)], name[complex(b)])))
                     for line in lines for a, b in zip(line[:-1], line[1:]))
     assert walked == sorted(tuple(sorted(e)) for e in edges)
     fewest = 0
@@ -74,6 +77,60 @@ def test_chains_walk_every_edge_once_with_the_fewest_strokes(edges):
         odd = np.count_nonzero(np.bincount(np.ravel(group), minlength=12) % 2)
         fewest += max(1, odd // 2)
     assert len(lines) == fewest
+
+
+def _straight_strokes(lines: list[np.ndarray]) -> bool:
+    """Whether every stroke goes straight on at each of its points."""
+    for line in lines:
+        steps = np.diff(line)
+        if np.any(np.abs((steps[1:] * steps[:-1].conj()).imag) > 1e-9 * np.abs(steps[1:] * steps[:-1])) \
+                or np.any((steps[1:] * steps[:-1].conj()).real <= 0):
+            return False
+    return True
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.integers(0, 10), min_size=1, max_size=5, unique=True),
+       st.lists(st.integers(0, 10), min_size=1, max_size=5, unique=True),
+       st.floats(0.3, 2.8), st.floats(0, 6.3), st.randoms(use_true_random=False))
+def test_chains_draw_crossing_lines_straight_through(rows, columns, crossing, turn, rng):
+    """Lines that cross (two families at an angle, edges numbered at random) come back as
+    the lines themselves: one straight stroke each, never a turn at a crossing."""
+    across, along = np.exp(1j * turn), np.exp(1j * (turn + crossing))  # point (a, b): a across + b along
+    index: dict[tuple[int, int], int] = {}
+    points: list[complex] = []
+
+    def vertex(a: int, b: int) -> int:
+        if (a, b) not in index:
+            index[a, b] = len(points)
+            points.append(a * across + b * along)
+        return index[a, b]
+    edges = []
+    for b in rows:  # a line along "across" at b, from a = -1 to 11, through every column
+        stops = [-1] + sorted(columns) + [11]
+        edges += [(vertex(p, b), vertex(q, b)) for p, q in zip(stops[:-1], stops[1:])]
+    for a in columns:
+        stops = [-1] + sorted(rows) + [11]
+        edges += [(vertex(a, p), vertex(a, q)) for p, q in zip(stops[:-1], stops[1:])]
+    rng.shuffle(edges)
+    edges = [e if rng.random() < 0.5 else e[::-1] for e in edges]
+    lines = _chains(np.array(edges, dtype=np.intp), np.array(points))
+    assert len(lines) == len(rows) + len(columns)
+    assert _straight_strokes(lines)
+    assert sorted(len(line) for line in lines) == sorted([len(columns) + 2] * len(rows) + [len(rows) + 2] * len(columns))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.integers(0, 30), min_size=1, max_size=6, unique=True), st.randoms(use_true_random=False))
+def test_chains_pair_the_straightest_edges_at_a_vertex(angles, rng):
+    """Lines through one point at distinct angles: each is drawn straight through it."""
+    ends = [r * np.exp(0.1j * t) for t in angles for r in (1, -1)]
+    rng.shuffle(ends)  # numbered at random
+    points = [0j] + ends
+    edges = [(0, k) for k in range(1, len(points))]
+    lines = _chains(np.array(edges, dtype=np.intp), np.array(points))
+    assert len(lines) == len(angles)
+    assert _straight_strokes(lines)
 
 
 def spec(**kw):
