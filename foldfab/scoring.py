@@ -47,8 +47,10 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     Euler circuits of that graph, cut where they pass the extra vertex, are the strokes.
     At every vertex the walk leaves by the edge :func:`_straight_pairs` pairs with the one
     it came in by, while that edge is unused: creases that cross are drawn through rather
-    than turned at, and a plotter slows down or stops at every turn.  Closed loops repeat
-    their first point.  Deterministic (otherwise neighbours in index order).
+    than turned at, and a plotter slows down or stops at every turn.  Where following the
+    pairs alone walks every edge (they close no circuit), :func:`_trails` reads the strokes
+    off at once; otherwise :func:`_circuit` walks, splicing the circuits in.  Closed loops
+    repeat their first point.  Deterministic (otherwise neighbours in index order).
     """
     count = len(points)
     odd = np.flatnonzero(np.bincount(edges.ravel(), minlength=count) % 2)
@@ -68,40 +70,86 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     lengths = np.abs(steps)
     partner = _straight_pairs(at, np.divide(steps, lengths, out=np.zeros_like(steps), where=lengths > 0),
                               to < extra, extra)
-    fake = len(order)  # the slot the walk "arrives" by at its start: it has no partner
-    edge, arrive, partner = ids[order].tolist(), arrive.tolist(), partner.tolist() + [-1]
-    vertex = at.tolist() + [extra]
-    cursor, stop = offsets[:-1].tolist(), offsets[1:].tolist()
-    used = [False] * len(pairs)
-    walks: list[list[int]] = []
-    starts = ([extra] if len(odd) else []) + np.sort(edges.min(axis=1)).tolist()
-    for start in starts:
-        vertex[fake] = start
-        circuit, stack = [], [fake]  # the slots the walk arrived by
-        while stack:  # Hierholzer: extend the walk; at a dead end, emit the vertex and back up
-            came = stack[-1]
+    trails = _trails(at, to, arrive, partner, extra)
+    if trails is not None:
+        return np.split(points[trails[0]], trails[1]) if len(trails[0]) else []
+    # (one more slot, after the last, is the one a walk "arrives" by at its start: no partner)
+    state = (ids[order].tolist(), arrive.tolist(), partner.tolist() + [-1], at.tolist() + [extra],
+             offsets[:-1].tolist(), offsets[1:].tolist(), [False] * len(pairs))
+    walks = _circuit(extra, extra, *state) if len(odd) else []  # every component with odd vertices
+    left = np.flatnonzero(~np.array(state[-1][:len(edges)], dtype=bool))  # closed components
+    for start in np.unique(edges[left].min(axis=1)).tolist():
+        walks += _circuit(start, extra, *state)
+    return [points[walk] for walk in walks]
+
+
+def _trails(at: np.ndarray, to: np.ndarray, arrive: np.ndarray, partner: np.ndarray,
+            extra: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The strokes the pairs make by themselves, as their vertices one after another and
+    where each but the first starts, or None where the pairs also close circuits (which
+    Hierholzer's walk must splice in).
+
+    Leaving by slot ``s``, a walk comes in by ``arrive[s]`` and leaves by its partner; a
+    stroke runs from a slot at the extra vertex to one into it.  Every slot finds its
+    stroke and place in it by pointer jumping on the slot before it (list ranking, one
+    doubling per round); each stroke is found from both ends and kept from the lower.
+    """
+    size = len(at)
+    head = at == extra
+    pointer = np.where(head, np.arange(size), arrive[partner])  # the slot before; a head: itself
+    rank = (~head).astype(np.intp)
+    for _ in range(size.bit_length()):
+        further = pointer[pointer]
+        if np.array_equal(further, pointer):
+            break
+        rank += rank[pointer]
+        pointer = further
+    if not head[pointer].all():
+        return None
+    last = np.flatnonzero(to == extra)
+    kept = np.zeros(size, dtype=bool)
+    kept[pointer[last]] = pointer[last] < arrive[last]
+    slots = np.flatnonzero(kept[pointer] & ~head)
+    slots = slots[np.lexsort((rank[slots], pointer[slots]))]
+    return at[slots], np.flatnonzero(np.diff(pointer[slots])) + 1
+
+
+def _circuit(start: int, extra: int, edge: list[int], arrive: list[int], partner: list[int],
+             vertex: list[int], cursor: list[int], stop: list[int], used: list[bool]) -> list[list[int]]:
+    """Hierholzer's Euler circuit from ``start`` over the unused edges, cut where it passes
+    the ``extra`` vertex: the strokes, as lists of vertices (pieces of one vertex dropped).
+    Slot lists as built in :func:`_chains`; marks the edges it walks used."""
+    fake = len(arrive)
+    vertex[fake] = start
+    circuit, stack = [], [fake]  # the slots the walk arrived by
+    while stack:  # extend the walk; at a dead end, emit the vertex and back up
+        came = stack[-1]
+        i = partner[came]
+        while i >= 0 and not used[edge[i]]:  # straight on, as long as the pairs lead
+            used[edge[i]] = True
+            came = arrive[i]
+            stack.append(came)
             i = partner[came]
-            if i < 0 or used[edge[i]]:
-                v = vertex[came]
-                i, last = cursor[v], stop[v]
-                while i < last and used[edge[i]]:
-                    i += 1
-                cursor[v] = i
-                if i == last:
-                    circuit.append(v)
-                    stack.pop()
-                    continue
+        v = vertex[came]
+        i, last = cursor[v], stop[v]
+        while i < last and used[edge[i]]:
+            i += 1
+        cursor[v] = i
+        if i == last:
+            circuit.append(v)
+            stack.pop()
+        else:
             used[edge[i]] = True
             stack.append(arrive[i])
-        piece: list[int] = []
-        for v in circuit + [extra]:
-            if v == extra:
-                if len(piece) > 1:
-                    walks.append(piece)
-                piece = []
-            else:
-                piece.append(v)
-    return [points[walk] for walk in walks]
+    walks, piece = [], []
+    for v in circuit + [extra]:
+        if v == extra:
+            if len(piece) > 1:
+                walks.append(piece)
+            piece = []
+        else:
+            piece.append(v)
+    return walks
 
 
 def _straight_pairs(at: np.ndarray, unit: np.ndarray, real: np.ndarray, extra: int) -> np.ndarray:
