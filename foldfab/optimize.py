@@ -90,7 +90,8 @@ def _sort(lines: list[np.ndarray], command: str, pen: complex) -> list[np.ndarra
     KD-tree over every remaining line whenever the pen's neighbourhood runs dry, so one
     sort of a 50,000-line crease layer takes 6 s and in tiles 2.5 s; and a greedy sort kept
     within a tile leaves no stragglers to come back for across the sheet, so on crease
-    patterns the tiles also travel less (12.3 m against 16.7 m on that layer).
+    patterns the tiles mostly travel less too (the 12.6 m roll's valleys: 12.5 m against
+    19.4 m; its mountains, long zigzags among short pieces, 43.3 m against 38.3 m).
     """
     out: list[np.ndarray] = []
     for tile in _tiles(lines, pen):
