@@ -66,7 +66,8 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     slot[order] = np.arange(len(order))
     arrive = slot[(order + len(pairs)) % len(order)]  # the slot of the same edge at its other end
     at, to = ends[order], others[order]
-    steps = np.where(to < extra, np.append(points, 0)[to] - np.append(points, 0)[at], 0)
+    placed = np.append(points, 0)  # (the extra vertex anywhere: its edges have no direction)
+    steps = np.where(to < extra, placed[to] - placed[at], 0)
     lengths = np.abs(steps)
     partner = _straight_pairs(at, np.divide(steps, lengths, out=np.zeros_like(steps), where=lengths > 0),
                               to < extra, extra)
