@@ -71,7 +71,7 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     lengths = np.abs(steps)
     partner = _straight_pairs(at, np.divide(steps, lengths, out=np.zeros_like(steps), where=lengths > 0),
                               to < extra, extra)
-    trails = _trails(at, to, arrive, partner, extra)
+    trails = _trails(at, to, arrive, partner, extra) if len(odd) else None  # (no odd vertex: all circuits)
     if trails is not None:
         return np.split(points[trails[0]], trails[1]) if len(trails[0]) else []
     # (one more slot, after the last, is the one a walk "arrives" by at its start: no partner)
