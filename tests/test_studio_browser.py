@@ -359,3 +359,36 @@ def test_drawing_a_new_trajectory(page):
     assert not page.evaluate("window.studio.trajectory.drawing") and page.inner_text("#draw") == "draw new"
     summary = shown(page)["summary"]
     assert summary["closed"] is True and summary["corners"] == 4
+
+
+def ring_pixels(page, view: str, index: int, points: str) -> int:
+    """How many pixels of the error red (#c62828) lie on a ring of radius 10 round point
+    ``index`` of ``points`` (a JavaScript expression) in the canvas of ``view``."""
+    return page.evaluate(f"""() => {{
+        const v = window.studio.{view}.view, ctx = v.canvas.getContext("2d"), dpr = window.devicePixelRatio || 1;
+        const [sx, sy] = v.toScreen(...{points}[{index}]);
+        let red = 0;
+        for (let k = 0; k < 64; k++) {{
+            const a = 2 * Math.PI * k / 64;
+            const [r, g, b] = ctx.getImageData(Math.round((sx + 10 * Math.cos(a)) * dpr),
+                                               Math.round((sy + 10 * Math.sin(a)) * dpr), 1, 1).data;
+            if (r > 150 && g < 90 && b < 90) red++;
+        }}
+        return red;
+    }}""")
+
+
+def test_the_profile_point_an_error_blames_is_ringed_in_red(page):
+    page.click("#view-profile summary")
+    points = "window.studio.profilePoints()"
+    assert ring_pixels(page, "profile", 2, points) == 0
+    row = "#profile-points tr:nth-child(5)"          # header row, then points 0, 1, 2, 3
+    before = renders(page)
+    page.fill(f"{row} td:nth-child(2) input", "0")
+    page.fill(f"{row} td:nth-child(3) input", "20")  # point 3 onto point 2
+    assert wait_render(page, before) == "error"
+    assert page.evaluate("window.studio.error.cause") == {"view": "profile", "point": 2}
+    page.wait_for_function("window.studio.profile.view.canvas.width > 0")
+    page.evaluate("window.studio.profile.view.draw()")
+    assert ring_pixels(page, "profile", 2, points) > 32, "a red ring round the point the error names"
+    assert ring_pixels(page, "profile", 0, points) == 0

@@ -1,7 +1,7 @@
 // The profile view: the profile polyline (u right, v up) and the trajectory seen end-on as a dot.
 // Points are the job's [profile].points; the dot sits at -offset, so dragging it sets [profile].offset.
 
-import { along, bounds, editorView, errorPoint, fmt, nearestHandle, nearestSegment } from "./view2d.js";
+import { along, bounds, editorView, errorPoint, fmt, markError, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
 
 export class ProfileView {
@@ -145,13 +145,7 @@ export class ProfileView {
         ctx.fillRect(sx - r, sy - r, 2 * r, 2 * r);
         ctx.strokeRect(sx - r, sy - r, 2 * r, 2 * r);
       });
-      const bad = this.errorPoint();
-      if (bad >= 0 && bad < points.length) {
-        const [sx, sy] = view.toScreen(...points[bad]);
-        ctx.strokeStyle = "#c62828";
-        ctx.lineWidth = 2.5;
-        ctx.beginPath(); ctx.arc(sx, sy, 10, 0, 2 * Math.PI); ctx.stroke();
-      }
+      markError(view, ctx, points, this.errorPoint());
       if (this.selected >= 0 && this.selected < points.length) {
         const [x, y] = points[this.selected];
         const [sx, sy] = view.toScreen(x, y);

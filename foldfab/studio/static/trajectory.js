@@ -1,7 +1,7 @@
 // The trajectory view, seen from above: templates with their parameters, or a free polyline;
 // the reflection planes dashed, the line elements' paths in grey, the start and travel direction.
 
-import { along, bounds, editorView, errorPoint, nearestHandle, nearestSegment } from "./view2d.js";
+import { along, bounds, editorView, errorPoint, markError, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
 
 const PARAMS = {
@@ -317,13 +317,7 @@ export class TrajectoryView {
     ctx.fill();
     ctx.font = "11px system-ui, sans-serif";
     ctx.fillText("start", a + 8, b + 16);
-    const bad = this.errorPoint();
-    if (bad >= 0 && bad < points.length) {
-      const [sx, sy] = view.toScreen(...points[bad]);
-      ctx.strokeStyle = "#c62828";
-      ctx.lineWidth = 2.5;
-      ctx.beginPath(); ctx.arc(sx, sy, 10, 0, 2 * Math.PI); ctx.stroke();
-    }
+    markError(view, ctx, points, this.errorPoint());
   }
 
   drawPaths(view, ctx, shown) {

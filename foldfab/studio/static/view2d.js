@@ -229,11 +229,6 @@ export function bounds(points) {
 }
 
 
-/**
- * The canvas of a point editor (profile or trajectory): drag, drop, double-click to add,
- * right-click or Delete to remove.  ``editor`` provides draw, hit, drag, add, remove,
- * handleAt and ``selected``; ``onKey`` handles the editor's own extra keys.
- */
 /** The index of the point the studio's error blames in view ``name`` ("profile",
  * "trajectory"), or -1. */
 export function errorPoint(studio, name) {
@@ -241,6 +236,21 @@ export function errorPoint(studio, name) {
   return cause && cause.view === name && cause.point !== undefined ? cause.point : -1;
 }
 
+/** A red ring round point ``index`` of ``points`` (world coordinates), where the studio's
+ * error points; nothing for -1 or an index past the end. */
+export function markError(view, ctx, points, index) {
+  if (index < 0 || index >= points.length) return;
+  const [sx, sy] = view.toScreen(...points[index]);
+  ctx.strokeStyle = "#c62828";
+  ctx.lineWidth = 2.5;
+  ctx.beginPath(); ctx.arc(sx, sy, 10, 0, 2 * Math.PI); ctx.stroke();
+}
+
+/**
+ * The canvas of a point editor (profile or trajectory): drag, drop, double-click to add,
+ * right-click or Delete to remove.  ``editor`` provides draw, hit, drag, add, remove,
+ * handleAt and ``selected``; ``onKey`` handles the editor's own extra keys.
+ */
 export function editorView(editor, section, studio, onKey = () => {}) {
   const view = new View2D(section.querySelector("canvas"), {
     draw: (view, ctx) => editor.draw(view, ctx),
