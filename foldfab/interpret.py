@@ -512,6 +512,8 @@ class HPGLMachine(Machine):
 _WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\(([^)]*)\)?|;(.*)$")
 _WORDS_ONLY = re.compile(r"(?:\s*" + _WORD.pattern + r")*\s*")  # nothing _WORD leaves unread
+_XY_LINE = re.compile(r"X([-+]?\d+\.?\d*) Y([-+]?\d+\.?\d*)(?: F(\d+\.?\d*))?")
+"""The lines :class:`GcodeMachine` takes without :func:`read_gcode_line`: words _WORD reads, nothing else."""
 SUPPORTED_G = frozenset({0, 1, 4, 17, 20, 21, 90, 91, 92})
 SUPPORTED_M = frozenset({0, 2, 3, 5})
 
@@ -581,17 +583,29 @@ class GcodeMachine(Machine):
     def run(self, text: str) -> Interpretation:
         offset = 0
         self.deferred = []
-        apply, size = self.apply, len(text)
+        execute, size = self.execute, len(text)
         for raw in text.split("\n"):
             end = offset + len(raw) + 1
             self.at = offset
-            apply(read_gcode_line(raw, offset), min(end, size))
+            execute(raw, offset, min(end, size))
             offset = end
         self.at = size
         return self.finish()
 
     def execute(self, raw: str, offset: int, end: int) -> None:
-        self.apply(read_gcode_line(raw, offset), end)
+        plain = _XY_LINE.fullmatch(raw)
+        if plain is not None:
+            self.xy_line(*plain.groups())
+        else:
+            self.apply(read_gcode_line(raw, offset), end)
+
+    def xy_line(self, x: str, y: str, feed: str | None) -> None:
+        """A line of only ``X.. Y..`` and perhaps ``F..`` (most of a program), as :meth:`apply`
+        would take it, without reading its words one by one."""
+        if feed is not None:
+            self.feed = float(feed) * self.scale / 60
+        self.xy_move({"X": float(x), "Y": float(y)})
+        self.comments = []
 
     def apply(self, line: GcodeLine, end: int) -> None:
         """Execute a line read by :func:`read_gcode_line` (``end``: offset after its newline)."""

@@ -440,6 +440,45 @@ def test_reading_a_gcode_line_by_the_fast_paths_gives_what_the_full_scan_gives(r
                                           or (k == "M" and v not in SUPPORTED_M)]
 
 
+_number = st.floats(-500, 500, allow_nan=False).map(lambda v: f"{v:.3f}".rstrip("0").rstrip("."))
+_plain = st.one_of(st.tuples(_number, _number).map(lambda xy: f"X{xy[0]} Y{xy[1]}"),
+                   st.tuples(_number, _number, st.integers(1, 3000)).map(lambda v: f"X{v[0]} Y{v[1]} F{v[2]}"))
+_other = st.sampled_from(["G91", "G90", "G20", "G21", "G92 X0 Y0", "G92 X5", "G0", "G1", "(a comment)", "M0",
+                          "x1 y2", "X1  Y2", "X.5 Y1", "X1 Y2 ; note", "Y4", "X2", "G1 X3 Y4 F900", "", "S10 X1 Y1"])
+_pen = st.sampled_from(["G0 Z3", "G1 Z-0.3 F600", "G1 Z-1 F60"])
+GCODE_LINES = st.lists(st.tuples(st.lists(_other, max_size=3), _pen, st.lists(st.one_of(_plain, _plain, st.just("(a comment)")), min_size=1, max_size=4)),
+                       max_size=8).map(lambda blocks: [line for modes, pen, plain in blocks
+                                                       for line in [*modes, pen, *plain]])
+"""Programs in blocks: mode and other lines, a pen move, then plain coordinate lines among comments."""
+
+
+@settings(max_examples=300, deadline=None)
+@given(GCODE_LINES)
+def test_plain_coordinate_lines_are_read_as_every_line_is(lines):
+    """GcodeMachine takes a line of only X, Y and F words (most of a program) without reading
+    its words one by one: the same strokes, travels, pauses and problems as the full reading,
+    whatever modes (relative, inches, a pending G92) the lines before have set."""
+    from foldfab.interpret import read_gcode_line
+
+    device, text = load_device("grbl"), "\n".join(lines)
+    frame = device.frame(device.sheet)
+    machine, offset = GcodeMachine(device, frame, None), 0
+    machine.deferred = []
+    for raw in text.split("\n"):
+        machine.at = offset
+        machine.apply(read_gcode_line(raw, offset), min(offset + len(raw) + 1, len(text)))
+        offset += len(raw) + 1
+    machine.at = len(text)
+    full, fast = machine.finish(), interpret(text, device)
+    assert [(s.points.tolist(), s.offset, s.end, s.speed, s.pen_down) for s in fast.strokes] == \
+        [(s.points.tolist(), s.offset, s.end, s.speed, s.pen_down) for s in full.strokes]
+    assert [(t.start, t.end, t.next_stroke) for t in fast.travels] == \
+        [(t.start, t.end, t.next_stroke) for t in full.travels]
+    assert [(p.message, p.position, p.offset) for p in fast.pauses] == \
+        [(p.message, p.position, p.offset) for p in full.pauses]
+    assert fast.ignored == full.ignored
+
+
 # --- junction speeds (GRBL's planner) ---------------------------------------------------
 
 GRBL = load_device("grbl")
