@@ -513,7 +513,8 @@ _WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\(([^)]*)\)?|;(.*)$")
 _WORDS_ONLY = re.compile(r"(?:\s*" + _WORD.pattern + r")*\s*")  # nothing _WORD leaves unread
 _XY_LINE = re.compile(r"X([-+]?\d+\.?\d*) Y([-+]?\d+\.?\d*)(?: F(\d+\.?\d*))?")
-"""The lines :class:`GcodeMachine` takes without :func:`read_gcode_line`: words _WORD reads, nothing else."""
+"""Lines of X, Y and perhaps F (as _WORD reads them, nothing else): GcodeMachine takes their
+words without :func:`read_gcode_line`."""
 SUPPORTED_G = frozenset({0, 1, 4, 17, 20, 21, 90, 91, 92})
 SUPPORTED_M = frozenset({0, 2, 3, 5})
 
@@ -594,18 +595,14 @@ class GcodeMachine(Machine):
 
     def execute(self, raw: str, offset: int, end: int) -> None:
         plain = _XY_LINE.fullmatch(raw)
-        if plain is not None:
-            self.xy_line(*plain.groups())
-        else:
+        if plain is None:
             self.apply(read_gcode_line(raw, offset), end)
-
-    def xy_line(self, x: str, y: str, feed: str | None) -> None:
-        """A line of only ``X.. Y..`` and perhaps ``F..`` (most of a program), as :meth:`apply`
-        would take it, without reading its words one by one."""
+            return
+        x, y, feed = plain.groups()  # most lines: their words without reading them one by one
+        values = {"X": float(x), "Y": float(y)}
         if feed is not None:
-            self.feed = float(feed) * self.scale / 60
-        self.xy_move({"X": float(x), "Y": float(y)})
-        self.comments = []
+            values["F"] = float(feed)
+        self.take(values, offset, end)
 
     def apply(self, line: GcodeLine, end: int) -> None:
         """Execute a line read by :func:`read_gcode_line` (``end``: offset after its newline)."""
@@ -626,6 +623,10 @@ class GcodeMachine(Machine):
                     values[letter] = value
         else:  # most lines: coordinates and a feed
             values = dict(line.words)
+        self.take(values, offset, end)
+
+    def take(self, values: dict, offset: int, end: int) -> None:
+        """Execute a line's words but G (letter -> value, "M" -> the M values in order)."""
         if "F" in values:
             self.feed = values["F"] * self.scale / 60
         if "S" in values:
