@@ -16,7 +16,7 @@ from pathlib import Path
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
-from foldfab.estimate import estimate, move_times
+from foldfab.estimate import estimate, travel_times
 from foldfab.fabrication import build_plan, fabricate, parse_fabrication, park_position
 from foldfab.interpret import interpret
 from foldfab.optimize import travel
@@ -57,11 +57,9 @@ def closed(points) -> bool:
     return len(points) > 3 and bool(np.allclose(points[0], points[-1]))
 
 
-def gaps(ends, starts):
-    """Distances [a, b] from each point of ``ends`` (n, 2) to each of ``starts`` (m, 2)."""
-    import numpy as np
-
-    return np.hypot(*(ends[:, None, :] - starts[None, :, :]).transpose(2, 0, 1))
+def moves(ends, starts, motion):
+    """Seconds [a, b] of a pen-up move from each point of ``ends`` (n, 2) to each of ``starts`` (m, 2)."""
+    return travel_times(starts[None, :, :] - ends[:, None, :], motion)
 
 
 def travel_floor(strokes, park: complex, device) -> float:
@@ -70,9 +68,9 @@ def travel_floor(strokes, park: complex, device) -> float:
     Any plan is a path from the park position through every stroke and home again, so it
     pairs each stroke with the one drawn before it (or the park position), each with a
     different one, and the last with home: an assignment.  A move from stroke j to stroke
-    i is at least the distance between their nearest candidate points (either end of an
-    open stroke, any vertex of a closed one, which may start anywhere), timed as one
-    rest-to-rest move at the travel speed as the estimate does; a stroke can only follow
+    i takes at least the quickest move between their candidate points (either end of an
+    open stroke, any vertex of a closed one, which may start anywhere), each timed as the
+    estimate times a pen-up move (:func:`~foldfab.estimate.travel_times`); a stroke can only follow
     one of its own layer or of the layer before.  The cheapest assignment
     (``scipy.optimize.linear_sum_assignment``) is then a floor for every plan; it ignores
     that the pairs must form one path and that a stroke leaves from the other end than it
@@ -87,9 +85,8 @@ def travel_floor(strokes, park: complex, device) -> float:
                   else s.points[[0, -1]] for s in strokes] + [np.array([[park.real, park.imag]])]
     points = np.concatenate(candidates)
     starts = np.cumsum([0] + [len(c) for c in candidates[:-1]])
-    nearest = np.minimum.reduceat(np.minimum.reduceat(gaps(points, points), starts, axis=0), starts, axis=1)
-    motion = device.motion
-    cost = move_times(nearest, motion.travel_speed, motion.acceleration)  # [j, i]: from j to i
+    cost = np.minimum.reduceat(np.minimum.reduceat(moves(points, points, device.motion), starts, axis=0),
+                               starts, axis=1)  # [j, i]: from j to i
     last = layer[:-1].max()
     before, after = layer[:, None], layer[None, :]
     allowed = ((before == after) | (before == after - 1)) & (before >= 0) & (after >= 0)
@@ -118,7 +115,7 @@ def optimal_travel(strokes, park: complex, device) -> float | None:
     motion = device.motion
 
     def cost(ends, starts):  # [a, b]: seconds from end a to start b
-        return move_times(gaps(ends, starts), motion.travel_speed, motion.acceleration)
+        return moves(ends, starts, motion)
 
     ends, spent = np.array([[park.real, park.imag]]), np.zeros(1)  # where the pen may be, at what cost
     for name in dict.fromkeys(s.layer for s in strokes):
@@ -142,8 +139,7 @@ def optimal_travel(strokes, park: complex, device) -> float | None:
             target = mask | (1 << stroke[free])
             best[target, free] = np.minimum(best[target, free], reach[free])
         ends, spent = finish, best[-1]
-    home = np.hypot(ends[:, 0] - park.real, ends[:, 1] - park.imag)
-    return float((spent + move_times(home, motion.travel_speed, motion.acceleration)).min())
+    return float((spent + moves(ends, np.array([[park.real, park.imag]]), motion)[:, 0]).min())
 
 
 def drawing_floor(run, device) -> float:

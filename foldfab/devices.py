@@ -29,7 +29,9 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
                park = [x, y] (device mm, default [0, 0]): where the head waits at pauses and the end;
                junction_deviation (mm > 0, G-code only): GRBL's $11; time estimates and the
                simulated GRBL then keep speed through corners as GRBL plans them (absent: every
-               corner sharper than 1 degree is taken from rest)
+               corner sharper than 1 degree is taken from rest);
+               axis_limits (default false): travel_speed and acceleration limit each axis, as
+               GRBL's $110/$111 and $120/$121 do, so a diagonal move gets up to 1.41 times both
     [limits]   optional ranges [lo, hi] for pen, force, speed
     [gcode]    gcode only: pen_up = Z height (number) or a servo command ("M3 S50");
                z_speed (mm/s, required with a Z height)
@@ -127,6 +129,9 @@ class Motion:
     park: tuple[float, float] = (0.0, 0.0)
     junction_deviation: float | None = None
     """GRBL's ``$11`` (mm): corners are planned with junction speeds; None: taken from rest."""
+    axis_limits: bool = False
+    """``travel_speed`` and ``acceleration`` limit each axis (GRBL's ``$110``/``$111``,
+    ``$120``/``$121``), not the head's path: see :func:`foldfab.estimate.axis_factors`."""
 
 
 @dataclass(frozen=True)
@@ -563,6 +568,7 @@ def _parse(root: _Reader) -> DeviceProfile:
         pen_lift_time=mot.take("pen_lift_time", "seconds >= 0", _number(0)),
         park=mot.take("park", "[x, y] in device mm", _pair(_number()), (0.0, 0.0)),
         junction_deviation=mot.take("junction_deviation", "mm > 0 (GRBL's $11)", positive, None),
+        axis_limits=mot.take("axis_limits", "true or false", _boolean, False),
     )
     if protocol == "hpgl" and motion.junction_deviation is not None:
         raise mot.fail("junction_deviation", "no junction_deviation in an HPGL profile (GRBL's $11; "

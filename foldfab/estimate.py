@@ -15,12 +15,14 @@ Two motion models, chosen by the device profile:
   the way there and to every later stop; each segment is then a trapezoid (or triangle)
   from its entry to its exit speed (:func:`segment_times`).  GRBL's planner looks only
   as far ahead as its buffer holds, so a real (or simulated) run may take a little longer.
-  The profile's one ``acceleration`` serves every direction (GRBL limits each axis, so
-  it accelerates diagonal moves somewhat faster).
 
 In both, a pen-up move is one rest-to-rest trapezoid at the profile's ``travel_speed``,
 each pen down and each pen up costs the profile's ``pen_lift_time``, and pauses for the
-operator are not counted.
+operator are not counted.  A profile with ``axis_limits`` (GRBL's: its ``$110``/``$111``
+and ``$120``/``$121`` are per axis) gives each move the travel speed and acceleration
+times its :func:`axis_factors`, and caps a drawing speed at the travel speed so scaled,
+as GRBL's planner does; a junction's acceleration is scaled along the difference of the
+two moves' directions.  Otherwise the one ``acceleration`` serves every direction.
 
 ``lower_bound`` is what no plan can beat for the same strokes: drawn length at the
 draw speed with infinite acceleration, plus one pen down and one pen up per stroke.
@@ -34,6 +36,8 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     import numpy as np
+
+    from foldfab.devices import Motion
 
     from foldfab.devices import DeviceProfile
     from foldfab.interpret import Interpretation
@@ -67,10 +71,46 @@ class Estimate:
         return self.draw_time + self.travel_time + self.lift_time
 
 
-def move_times(lengths: np.ndarray, speed: float | np.ndarray, acceleration: float) -> np.ndarray:
+def axis_factors(steps: np.ndarray) -> np.ndarray:
+    """How far beyond its per-axis limits a move along ``steps`` (..., 2; mm) may go, on a
+    machine whose axes have the same speed and acceleration limits: its length over its
+    larger component (1 along an axis, 1.41 at 45 degrees; 1 for a zero step).  GRBL's
+    ``limit_value_by_axis_maximum`` (``planner.c``) for equal settings on both axes."""
+    import numpy as np
+
+    steps = np.asarray(steps, dtype=float)
+    larger = np.abs(steps).max(axis=-1)
+    return np.hypot(steps[..., 0], steps[..., 1]) / np.where(larger > 0, larger, 1.0) + (larger == 0)
+
+
+def move_limits(steps: np.ndarray, speeds: float | np.ndarray, motion: Motion) -> tuple:
+    """Speed and acceleration of drawn moves along ``steps`` (..., 2) at ``speeds``: as given and
+    the profile's, or with ``axis_limits`` the acceleration times each move's factor and the
+    speed at most the travel speed times it (GRBL caps a feed at the rapid rate)."""
+    import numpy as np
+
+    if not motion.axis_limits:
+        return speeds, motion.acceleration
+    factors = axis_factors(steps)
+    return np.minimum(speeds, motion.travel_speed * factors), motion.acceleration * factors
+
+
+def travel_times(steps: np.ndarray, motion: Motion) -> np.ndarray:
+    """Seconds for pen-up moves along ``steps`` (..., 2; mm), each from rest to rest at the
+    profile's travel speed and acceleration (times each move's factor with ``axis_limits``)."""
+    import numpy as np
+
+    steps = np.asarray(steps, dtype=float)
+    factors = axis_factors(steps) if motion.axis_limits else 1.0
+    return move_times(np.hypot(steps[..., 0], steps[..., 1]), motion.travel_speed * factors,
+                      motion.acceleration * factors)
+
+
+def move_times(lengths: np.ndarray, speed: float | np.ndarray,
+               acceleration: float | np.ndarray) -> np.ndarray:
     """Seconds for straight moves of ``lengths`` (mm), each from rest to rest (trapezoid).
 
-    ``speed`` is one for all moves or one per move.
+    ``speed`` and ``acceleration`` are one for all moves or one per move.
     """
     import numpy as np
 
@@ -81,7 +121,7 @@ def move_times(lengths: np.ndarray, speed: float | np.ndarray, acceleration: flo
 
 
 def junction_limits(before: np.ndarray, after: np.ndarray, speeds: float | np.ndarray,
-                    acceleration: float, deviation: float) -> np.ndarray:
+                    acceleration: float | np.ndarray, deviation: float) -> np.ndarray:
     """Squared speeds (mm²/s²) GRBL 1.1 allows through junctions between moves along the unit
     vectors ``before`` and ``after`` (shape (..., 2)), both at nominal ``speeds`` (mm/s).
 
@@ -97,7 +137,7 @@ def junction_limits(before: np.ndarray, after: np.ndarray, speeds: float | np.nd
     return np.minimum(np.where(cos_theta < -0.999999, np.inf, limit), np.square(speeds))
 
 
-def plan_speeds(limits: np.ndarray, lengths: np.ndarray, acceleration: float) -> np.ndarray:
+def plan_speeds(limits: np.ndarray, lengths: np.ndarray, acceleration: float | np.ndarray) -> np.ndarray:
     """Squared speeds at the n + 1 ends of n consecutive moves of ``lengths`` (mm): each as high
     as its ``limit`` allows while acceleration can reach it from the ends before and still
     slow down to the limits of the ends after (GRBL's backward and forward passes).
@@ -105,17 +145,19 @@ def plan_speeds(limits: np.ndarray, lengths: np.ndarray, acceleration: float) ->
     The passes ``w[i] = min(J[i], w[i+1] + 2aL[i])`` and ``u[i] = min(w[i], u[i-1] + 2aL[i-1])``
     unroll to ``w[i] = min(J[k] + 2aS[k], k >= i) - 2aS[i]`` and ``u[i] = min(w[k] - 2aS[k],
     k <= i) + 2aS[i]`` (``S``: distance from the first end): one ``np.minimum.accumulate``
-    each, backwards then forwards.  A zero limit makes the moves on either side independent.
+    each, backwards then forwards (``2aS``: the sum of ``2aL`` over the moves before, so
+    ``acceleration`` may be one per move).  A zero limit makes the moves on either side
+    independent.
     """
     import numpy as np
 
-    reach = 2.0 * acceleration * np.concatenate([[0.0], np.cumsum(lengths)])
+    reach = np.concatenate([[0.0], np.cumsum(2.0 * np.multiply(acceleration, lengths))])
     backward = np.minimum.accumulate((np.asarray(limits, dtype=float) + reach)[::-1])[::-1] - reach
     return np.minimum.accumulate(backward - reach) + reach
 
 
 def segment_times(lengths: np.ndarray, speeds: float | np.ndarray, entry: np.ndarray,
-                  leave: np.ndarray, acceleration: float) -> np.ndarray:
+                  leave: np.ndarray, acceleration: float | np.ndarray) -> np.ndarray:
     """Seconds for moves of ``lengths`` (mm) entered and left at squared speeds ``entry`` and
     ``leave`` (each reachable from the other), cruising at ``speeds`` if the move is long
     enough (trapezoid), else turning at the highest speed it reaches (triangle)."""
@@ -150,28 +192,29 @@ def _segments(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, ...]:
     return totals, steps[moving], lengths[moving], owner[moving]
 
 
-def polyline_runs(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def polyline_runs(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, ...]:
     """Polylines stored one after another in ``points`` (N, 2), polyline k from row ``starts[k]``.
 
     Returns each polyline's length, the lengths of all their straight moves in order (as
-    :func:`straight_runs` finds them in each polyline) and the polyline of each move.
+    :func:`straight_runs` finds them in each polyline), the polyline of each move and the
+    step of each move's first segment (its direction).
     """
     import numpy as np
 
     totals, steps, lengths, owner = _segments(points, starts)
     if not len(lengths):
-        return totals, lengths, owner
+        return totals, lengths, owner, steps
     cross = steps[:-1, 0] * steps[1:, 1] - steps[:-1, 1] * steps[1:, 0]
     dot = (steps[:-1] * steps[1:]).sum(axis=1)
     corner = (np.abs(np.arctan2(cross, dot)) > CONTINUATION_ANGLE) | (owner[1:] != owner[:-1])
     runs = np.concatenate([[0], np.flatnonzero(corner) + 1])
-    return totals, np.add.reduceat(lengths, runs), owner[runs]
+    return totals, np.add.reduceat(lengths, runs), owner[runs], steps[runs]
 
 
 def planned_segments(points: np.ndarray, starts: np.ndarray, speeds: np.ndarray,
-                     acceleration: float, deviation: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Polylines stored as for :func:`polyline_runs`, polyline k drawn at ``speeds[k]``, each
-    planned from rest to rest with junction speeds (junction ``deviation``, mm).
+    planned from rest to rest with junction speeds (the profile's ``junction_deviation``).
 
     Returns each polyline's length, the seconds of all their non-zero segments in order and
     the polyline of each segment.
@@ -180,10 +223,14 @@ def planned_segments(points: np.ndarray, starts: np.ndarray, speeds: np.ndarray,
 
     totals, steps, lengths, owner = _segments(points, starts)
     units = steps / lengths[:, None]
-    speed = speeds[owner]
+    speed, acceleration = move_limits(steps, speeds[owner], motion)
+    speed = np.broadcast_to(speed, lengths.shape)
+    turn = units[1:] - units[:-1]  # GRBL takes a junction's acceleration along this
+    _, bend = move_limits(turn, 0.0, motion)
     limits = np.zeros(len(lengths) + 1)  # at each end of each segment; polylines end at rest
     limits[1:-1] = np.where(owner[1:] == owner[:-1],
-                            junction_limits(units[:-1], units[1:], speed[1:], acceleration, deviation),
+                            junction_limits(units[:-1], units[1:], np.minimum(speed[:-1], speed[1:]), bend,
+                                            motion.junction_deviation),
                             0.0)
     ends = plan_speeds(limits, lengths, acceleration)
     return totals, segment_times(lengths, speed, ends[:-1], ends[1:], acceleration), owner
@@ -202,15 +249,15 @@ def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
     points = np.concatenate([s.points for s in strokes]) if strokes else np.zeros((0, 2))
     starts = np.cumsum(sizes) - sizes
     if motion.junction_deviation is None:
-        lengths, runs, owners = polyline_runs(points, starts)
-        run_times = move_times(runs, speeds[owners], motion.acceleration)
+        lengths, runs, owners, heads = polyline_runs(points, starts)
+        run_times = move_times(runs, *move_limits(heads, speeds[owners], motion))
     else:
-        lengths, run_times, owners = planned_segments(points, starts, speeds, motion.acceleration,
-                                                      motion.junction_deviation)
+        lengths, run_times, owners = planned_segments(points, starts, speeds, motion)
     seconds = np.bincount(owners, weights=run_times, minlength=len(strokes))
     ends = np.array([(*t.start, *t.end) for t in travels], dtype=float).reshape(-1, 4)
-    travel_lengths = np.hypot(ends[:, 2] - ends[:, 0], ends[:, 3] - ends[:, 1])
-    travel_times = move_times(travel_lengths, motion.travel_speed, motion.acceleration)
+    steps = ends[:, 2:] - ends[:, :2]
+    travel_lengths = np.hypot(steps[:, 0], steps[:, 1])
+    moves = travel_times(steps, motion)
     if strokes:
         leads_to = np.array([t.next_stroke for t in travels], dtype=np.intp)
         travel_layers = stroke_layers[np.minimum(leads_to, len(strokes) - 1)]
@@ -224,13 +271,13 @@ def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
     travelled = np.bincount(travel_layers, weights=travel_lengths, minlength=count)
     # each layer's strokes, then the travels that lead to it, each in order (bincount adds in order)
     times = np.bincount(np.concatenate([stroke_layers, travel_layers]),
-                        weights=np.concatenate([seconds + 2 * motion.pen_lift_time, travel_times]),
+                        weights=np.concatenate([seconds + 2 * motion.pen_lift_time, moves]),
                         minlength=count)
     layers = {name: LayerTime(float(drawn[i]), int(lifts[i]), float(travelled[i]), float(times[i]))
               for name, i in names.items()}
     lift_time = 2 * motion.pen_lift_time * len(strokes)
     lower = _running_total(lengths / speeds)
-    return Estimate(_running_total(seconds), float(travel_times.sum()), lift_time,
+    return Estimate(_running_total(seconds), float(moves.sum()), lift_time,
                     lower + lift_time, layers)
 
 

@@ -5,6 +5,7 @@ Also home of the helpers the writer tests share: plan builders and the round-tri
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from itertools import accumulate
 from pathlib import Path
@@ -16,8 +17,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from foldfab.devices import DeviceProfile, load_device
-from foldfab.estimate import (estimate, junction_limits, move_times, plan_speeds, planned_segments,
-                              segment_times, straight_runs)
+from foldfab.estimate import (axis_factors, estimate, junction_limits, move_times, plan_speeds,
+                              planned_segments, segment_times, straight_runs)
 from foldfab.interpret import (GcodeMachine, HPGLMachine, HPGLTokenizer, Interpretation, Stroke,
                                Travel, interpret)
 from foldfab.plan import Pass, Pause, PlotPlan, Tool
@@ -349,15 +350,14 @@ def test_estimate_keeps_strokes_apart():
 def test_estimate_is_the_sum_of_each_stroke_on_its_own(name):
     """Estimated for all strokes at once, it adds up what each stroke's points give alone."""
     device = load_device(name)
-    acceleration = device.motion.acceleration
-
-    deviation = device.motion.junction_deviation
+    motion = device.motion
 
     def alone(stroke: Stroke) -> float:
-        if deviation is None:
-            return float(move_times(straight_runs(stroke.points), stroke.speed, acceleration).sum())
+        if motion.junction_deviation is None:
+            assert not motion.axis_limits  # (else each run's direction would count)
+            return float(move_times(straight_runs(stroke.points), stroke.speed, motion.acceleration).sum())
         return float(planned_segments(stroke.points, np.zeros(1, dtype=np.intp), np.array([stroke.speed]),
-                                      acceleration, deviation)[1].sum())
+                                      motion)[1].sum())
 
     @settings(max_examples=25, deadline=None)
     @given(random_plans(device))
@@ -483,12 +483,14 @@ def test_plain_coordinate_lines_are_read_as_every_line_is(lines):
 
 GRBL = load_device("grbl")
 A, JD = GRBL.motion.acceleration, GRBL.motion.junction_deviation
+ONE_LIMIT = dataclasses.replace(GRBL.motion, axis_limits=False)
+"""The grbl profile's motion with one speed and acceleration for every direction."""
 
 
-def one_polyline(points, speed: float = 30.0, acceleration: float = A, deviation: float = JD) -> np.ndarray:
+def one_polyline(points, speed: float = 30.0, motion=ONE_LIMIT) -> np.ndarray:
     """Seconds of each non-zero segment of one polyline planned with junction speeds."""
     return planned_segments(np.asarray(points, dtype=float), np.zeros(1, dtype=np.intp),
-                            np.array([speed]), acceleration, deviation)[1]
+                            np.array([speed]), motion)[1]
 
 
 def grbl_junction(before, after, speed, acceleration, deviation) -> float:
@@ -505,14 +507,16 @@ def grbl_junction(before, after, speed, acceleration, deviation) -> float:
 
 
 def grbl_passes(limits, lengths, acceleration) -> list[float]:
-    """GRBL's backward then forward pass over squared speeds, one end at a time."""
+    """GRBL's backward then forward pass over squared speeds, one end at a time
+    (``acceleration``: one, or one per move)."""
     n = len(lengths)
+    a = list(acceleration) if isinstance(acceleration, list) else [acceleration] * n
     w = list(limits)
     for i in range(n - 1, -1, -1):
-        w[i] = min(limits[i], w[i + 1] + 2 * acceleration * lengths[i])
+        w[i] = min(limits[i], w[i + 1] + 2 * a[i] * lengths[i])
     u = list(w)
     for i in range(1, n + 1):
-        u[i] = min(w[i], u[i - 1] + 2 * acceleration * lengths[i - 1])
+        u[i] = min(w[i], u[i - 1] + 2 * a[i - 1] * lengths[i - 1])
     return u
 
 
@@ -616,20 +620,101 @@ def test_a_straight_line_split_into_points_takes_as_long_as_one_segment(a, b, cu
 
 
 def test_junction_deviation_estimate_keeps_speed_through_corners():
-    """On grbl, strokes that turn a little at every vertex go faster than from rest at each
-    corner and never beat the bound; without $11 the same profile stops at corners."""
+    """On grbl (one limit for every direction), strokes that turn a little at every vertex go
+    faster than from rest at each corner and never beat the bound; without $11 the same
+    profile stops at corners."""
     from dataclasses import replace
 
-    stop = replace(GRBL, motion=replace(GRBL.motion, junction_deviation=None))
+    one = replace(GRBL, motion=ONE_LIMIT)
+    stop = replace(one, motion=replace(ONE_LIMIT, junction_deviation=None))
     angles = np.linspace(0, math.pi, 60)
     arc = np.column_stack([100 + 50 * np.cos(angles), 100 + 50 * np.sin(angles)])
     run = Interpretation("gcode", [Stroke(arc, None, None, 30.0, -0.3, 0)], [])
-    planned, stopping = estimate(run, GRBL), estimate(run, stop)
+    planned, stopping = estimate(run, one), estimate(run, stop)
     assert planned.lower_bound <= planned.total < stopping.total
     assert planned.draw_time == pytest.approx(one_polyline(arc).sum(), rel=1e-12)
     # turns of 3 degrees pass at full speed (v² = 14,000 > 900): the stroke ramps at its ends only
     chords = 59 * 100 * math.sin(math.pi / 118)
     assert planned.draw_time == pytest.approx(move_times(np.array([chords]), 30.0, A)[0], rel=1e-12)
+
+
+# --- per-axis limits (GRBL's $110/$111, $120/$121) ----------------------------------------
+
+
+def test_axis_factors_by_hand():
+    assert axis_factors(np.array([[1.0, 0.0], [0.0, -2.0], [1.0, 1.0], [3.0, -4.0], [0.0, 0.0]])).tolist() == \
+        pytest.approx([1.0, 1.0, math.sqrt(2), 1.25, 1.0])
+
+
+def test_a_diagonal_pen_up_move_is_faster_by_the_square_root_of_two():
+    """On grbl, 100 mm along an axis take what one limit gives; 100 mm at 45 degrees as if
+    speed and acceleration were both 1.41 times the profile's."""
+    motion = GRBL.motion
+    v, a = motion.travel_speed, motion.acceleration
+    run = Interpretation("gcode", [], [Travel((0.0, 0.0), (100.0, 0.0), 0),
+                                       Travel((100.0, 0.0), (100 + 50 * math.sqrt(2), 50 * math.sqrt(2)), 0)])
+    per_axis = estimate(run, GRBL).travel_time
+    single = estimate(run, replace_motion(GRBL, axis_limits=False)).travel_time
+    one = float(move_times(np.array([100.0]), v, a)[0])
+    diagonal = float(move_times(np.array([100.0]), v * math.sqrt(2), a * math.sqrt(2))[0])
+    assert per_axis == pytest.approx(one + diagonal) and diagonal < one
+    assert single == pytest.approx(2 * one)
+
+
+def replace_motion(device: DeviceProfile, **changes) -> DeviceProfile:
+    return dataclasses.replace(device, motion=dataclasses.replace(device.motion, **changes))
+
+
+def grbl_axis_limit(settings: float, unit) -> float:
+    """planner.c's limit_value_by_axis_maximum for equal settings on both axes (a share too
+    small to divide by gives no limit, as in C)."""
+    return min(settings / abs(float(u)) if abs(u) > 1e-300 else math.inf for u in unit if u)
+
+
+@settings(max_examples=200, deadline=None)
+@given(polylines, st.floats(1, 200))
+def test_per_axis_planning_is_grbls(points, feed):
+    """With axis_limits, each segment's acceleration and rapid cap, and each junction's
+    acceleration (along the difference of the unit vectors), are planner.c's."""
+    motion = GRBL.motion
+    points = np.array(points, dtype=float)
+    steps = np.diff(points, axis=0)
+    steps = steps[np.hypot(*steps.T) > 0]
+    lengths = np.hypot(*steps.T)
+    units = steps / lengths[:, None]
+    accelerations = [grbl_axis_limit(motion.acceleration, u) for u in units]
+    nominal = [min(feed, grbl_axis_limit(motion.travel_speed, u)) for u in units]
+    limits = [0.0]
+    for i in range(1, len(units)):
+        turn = units[i] - units[i - 1]
+        turn_a = grbl_axis_limit(motion.acceleration, turn / np.hypot(*turn)) if np.hypot(*turn) > 1e-12 \
+            else motion.acceleration
+        limits.append(grbl_junction(units[i - 1], units[i], min(nominal[i - 1], nominal[i]), turn_a,
+                                    motion.junction_deviation))
+    limits.append(0.0)
+    ends = grbl_passes(limits, lengths.tolist(), accelerations)
+    expected = segment_times(lengths, np.array(nominal), np.array(ends[:-1]), np.array(ends[1:]),
+                             np.array(accelerations))
+    got = one_polyline(points, feed, GRBL.motion)
+    assert got.tolist() == pytest.approx(expected.tolist(), rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize("name", ["grbl"])
+def test_per_axis_limits_never_make_a_plot_slower(name):
+    """Per-axis limits give every move at least the one limit's speed and acceleration (with
+    draw speeds under the travel speed): the estimate never grows, and never beats the bound."""
+    device = load_device(name)
+    one = replace_motion(device, axis_limits=False)
+
+    @settings(max_examples=25, deadline=None)
+    @given(random_plans(device))
+    def check(plan):
+        run = interpret(write_program(plan, device), device, plan.sheet)
+        per_axis, single = estimate(run, device), estimate(run, one)
+        assert per_axis.lower_bound <= per_axis.total <= single.total * (1 + 1e-12)
+        assert per_axis.travel_time <= single.travel_time * (1 + 1e-12)
+
+    check()
 
 
 @pytest.mark.parametrize("value, words", [

@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.estimate import estimate, move_times, straight_runs
+from foldfab.estimate import estimate, move_limits, move_times, polyline_runs, travel_times
 from foldfab.fabrication import fabricate, parse_fabrication
 from foldfab.interpret import HPGLMachine, HPGLTokenizer, interpret
 from foldfab.sim import SimOptions, create_simulator, parse_options
@@ -300,20 +300,23 @@ def stop_at_corners(device):
     return replace(device, motion=replace(device.motion, junction_deviation=None))
 
 
-def rest_to_rest(run, device, runs=straight_runs) -> float:
-    """Seconds of ``run`` if every straight run of each stroke (``runs`` of its points) went
-    from rest to rest: the stop-at-corners model, written out stroke by stroke."""
+def rest_to_rest(run, device, runs=None) -> float:
+    """Seconds of ``run`` if every straight run of each stroke (``runs`` of its points, default
+    the straight runs) went from rest to rest: the stop-at-corners model, written out stroke by
+    stroke, each move at its speed and acceleration (scaled per axis where the profile says)."""
     motion = device.motion
-    drawn = sum(float(move_times(runs(s.points), s.speed, motion.acceleration).sum()) for s in run.strokes)
-    travel = sum(float(move_times(np.array([math.dist(t.start, t.end)]), motion.travel_speed,
-                                  motion.acceleration)[0]) for t in run.travels)
+    runs = runs or (lambda points: polyline_runs(points, np.zeros(1, dtype=np.intp))[1::2])
+    drawn = sum(float(move_times(lengths, *move_limits(steps, s.speed, motion)).sum())
+                for s in run.strokes for lengths, steps in [runs(s.points)])
+    travel = sum(float(travel_times(np.subtract(t.end, t.start), motion)) for t in run.travels)
     return drawn + travel + 2 * motion.pen_lift_time * len(run.strokes)
 
 
-def segments(points) -> np.ndarray:
-    """The non-zero segment lengths of a polyline, each its own move."""
-    lengths = np.hypot(*np.diff(points, axis=0).T)
-    return lengths[lengths > 0]
+def segments(points) -> tuple[np.ndarray, np.ndarray]:
+    """The non-zero segments of a polyline, each its own move: lengths and steps."""
+    steps = np.diff(points, axis=0)
+    lengths = np.hypot(*steps.T)
+    return lengths[lengths > 0], steps[lengths > 0]
 
 
 @pytest.mark.parametrize("device_name", ["hp7475a", "graphtec-ce6000", "grbl"])
@@ -387,7 +390,7 @@ def test_simulated_grbl_between_the_estimate_and_stopping_everywhere(strokes, pl
 def test_grbl_status_while_drawing_a_planned_move():
     port, g = grbl()
     port.read_until(b"help]\r\n")
-    g.send("G1 Z-0.3 F600\nG1 X50 F1800\nY50\n")  # 90 degrees: the corner passes at 3.47 mm/s
+    g.send("G1 Z-0.3 F600\nG1 X50 F1800\nY50\n")  # 90 degrees: the corner passes at 4.13 mm/s
     pause(port, 1.0)
     running = g.status()
     assert running.startswith(b"<Run|MPos:") and running.endswith(b",-0.300|FS:1800,0>")
@@ -395,9 +398,11 @@ def test_grbl_status_while_drawing_a_planned_move():
     assert 0 < x < 50
     port.simulator.run_until_idle()
     assert g.status() == b"<Idle|MPos:50.000,50.000,-0.300|FS:0,0>"
-    # 0.2 s pen down, then each 50 mm side: 0.06 s to 30 mm/s, 0.0530513 s to the corner speed
-    # (0.9 + 0.8879289 mm) and 48.2120711 mm at 30 mm/s, twice
-    side = 0.06 + 0.0530513 + 48.2120711 / 30
+    # The junction's acceleration is taken along (0, 1) - (1, 0), 45 degrees: 500 · √2 mm/s², so
+    # v² = 707.1068 · 0.01 · √½ / (1 - √½) = 17.0710678.  0.2 s pen down, then each 50 mm side:
+    # 0.06 s to 30 mm/s, 0.0517366 s to the corner speed (0.9 + 0.8829289 mm) and
+    # 48.2170711 mm at 30 mm/s, twice
+    side = 0.06 + 0.0517366 + 48.2170711 / 30
     assert port.simulator.stats.busy_time == pytest.approx(0.2 + 2 * side, abs=1e-6)
 
 

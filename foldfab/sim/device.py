@@ -283,8 +283,7 @@ class Simulator:
         """The head block starts now: a planned one gets its duration (:func:`plan_start`)."""
         block = self.planner[0]
         if block.planned:
-            block.duration, self.speed2 = plan_start(self.planner, self.speed2,
-                                                     self.device.motion.acceleration)
+            block.duration, self.speed2 = plan_start(self.planner, self.speed2)
         else:
             self.speed2 = 0.0
         self.block_end = self.t + block.duration

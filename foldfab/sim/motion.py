@@ -6,7 +6,9 @@ pen down and pen up the machine makes is handed to the simulator as a :class:`Bl
 which the simulator executes on its virtual clock.
 
 Durations follow :mod:`foldfab.estimate`'s model for the device.  A pen-up move is one
-trapezoid at the travel speed; each pen down and pen up costs ``pen_lift_time``.
+trapezoid at the travel speed; each pen down and pen up costs ``pen_lift_time``; with
+``axis_limits`` every move's speed and acceleration are scaled by its axis factor as the
+estimate scales them.
 
 * Stop at corners (no ``junction_deviation``): every block has its duration when it is
   made, and a simulated run's busy time equals the estimate of the same program.  A
@@ -35,8 +37,8 @@ import math
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
-from foldfab.estimate import (CONTINUATION_ANGLE, junction_limits, move_times, plan_speeds,
-                              segment_times)
+from foldfab.estimate import (CONTINUATION_ANGLE, junction_limits, move_limits, move_times, plan_speeds,
+                              segment_times, travel_times)
 from foldfab.interpret import GcodeMachine, HPGLMachine, Stroke
 
 Point = tuple[float, float]
@@ -66,9 +68,11 @@ class Block:
     """mm, of a planned block (zero-length ones take no time and do not stop the head)."""
     entry_limit: float = 0.0
     """A planned block's highest entry speed squared (mm²/s²): its junction with the move before."""
+    acceleration: float = 0.0
+    """A planned block's acceleration (mm/s²)."""
 
 
-def plan_start(blocks: Sequence[Block], entry: float, acceleration: float) -> tuple[float, float]:
+def plan_start(blocks: Sequence[Block], entry: float) -> tuple[float, float]:
     """Duration and squared exit speed of the first of ``blocks`` (the planner, head first, a
     planned block) when it starts at squared speed ``entry``.
 
@@ -81,16 +85,17 @@ def plan_start(blocks: Sequence[Block], entry: float, acceleration: float) -> tu
     head = blocks[0]
     if not head.length:  # no time, and the speed carries on to the next move
         return 0.0, entry
-    lengths, limits = [head.length], [entry]
+    lengths, limits, accelerations = [head.length], [entry], [head.acceleration]
     for block in itertools.islice(blocks, 1, None):
         if not block.planned:
             break
         if block.length:
             limits.append(block.entry_limit)
             lengths.append(block.length)
+            accelerations.append(block.acceleration)
     limits.append(0.0)
-    leave = float(plan_speeds(np.array(limits), np.array(lengths), acceleration)[1])
-    return float(segment_times(head.length, head.feed, entry, leave, acceleration)), leave
+    leave = float(plan_speeds(np.array(limits), np.array(lengths), np.array(accelerations))[1])
+    return float(segment_times(head.length, head.feed, entry, leave, head.acceleration)), leave
 
 
 class Timed:
@@ -101,7 +106,9 @@ class Timed:
     def start_timing(self, sink: Callable[[Block], None]) -> None:
         self.sink = sink
         self._run = 0.0  # length of the straight pen-down run so far (mm)
+        self._run_limits = (0.0, 0.0)  # its speed and acceleration
         self._heading: Point | None = None  # direction of the last non-zero pen-down move
+        self._nominal = 0.0  # speed of the last planned block
 
     def lift_duration(self) -> float:
         """Seconds for one pen down or pen up."""
@@ -130,8 +137,7 @@ class Timed:
         length = math.hypot(dx, dy)
         if not down:
             self._heading = None
-            speed = motion.travel_speed
-            self._emit(float(move_times(length, speed, motion.acceleration)), start, speed)
+            self._emit(float(travel_times((dx, dy), motion)), start, motion.travel_speed)
         elif motion.junction_deviation is None:
             self._extend_run(start, dx, dy, length)
         else:
@@ -139,7 +145,7 @@ class Timed:
 
     def _extend_run(self, start: Point, dx: float, dy: float, length: float) -> None:
         """A drawn move that stops at corners: it extends the straight run or starts a new one."""
-        motion, speed = self.device.motion, self.stroke_meta["speed"]
+        speed = self.stroke_meta["speed"]
         duration = 0.0
         if length > 0:
             before = 0.0
@@ -147,24 +153,28 @@ class Timed:
                     self._heading[0] * dy - self._heading[1] * dx,
                     self._heading[0] * dx + self._heading[1] * dy)) <= CONTINUATION_ANGLE:
                 before = self._run
+            else:  # a new run: its first move's direction sets its limits, as in the estimate
+                self._run_limits = tuple(map(float, move_limits((dx, dy), speed, self.device.motion)))
             self._run = before + length
-            times = move_times([before, self._run], speed, motion.acceleration)
+            times = move_times([before, self._run], *self._run_limits)
             duration = float(times[1] - times[0])  # T(0) = 0
             self._heading = (dx, dy)
         self._emit(duration, start, speed)
 
     def _plan(self, start: Point, dx: float, dy: float, length: float) -> None:
         """A drawn move under the junction model: a planned block, timed when it starts."""
-        motion, speed = self.device.motion, self.stroke_meta["speed"]
+        motion = self.device.motion
+        speed, acceleration = map(float, move_limits((dx, dy), self.stroke_meta["speed"], motion))
         limit = 0.0
         if length > 0:
             direction = (dx / length, dy / length)
             if self._heading is not None:
-                limit = float(junction_limits(self._heading, direction, speed, motion.acceleration,
-                                              motion.junction_deviation))
-            self._heading = direction
+                turn = (direction[0] - self._heading[0], direction[1] - self._heading[1])
+                limit = float(junction_limits(self._heading, direction, min(speed, self._nominal),
+                                              move_limits(turn, 0.0, motion)[1], motion.junction_deviation))
+            self._heading, self._nominal = direction, speed
         self.sink(Block(None, start, self.position, speed, self.mark(), planned=True,
-                        length=length, entry_limit=limit))
+                        length=length, entry_limit=limit, acceleration=acceleration))
 
     def _emit(self, duration: float, start: Point, feed: float) -> None:
         self.sink(Block(duration, start, self.position, feed, self.mark()))
