@@ -94,6 +94,8 @@ def broken(tmp_path, edit) -> str:
     (lambda t: t.replace('flow_control = "grbl"', 'flow_control = "xonxoff"'),
      ["key 'buffer.flow_control'", "serial.xonxoff = true"]),
     (lambda t: t.replace("park = [0, 0]", "park = [400, 0]"), ["key 'motion.park'"]),
+    (lambda t: t.replace("axis_limits = true", 'axis_limits = "yes"'),
+     ["key 'motion.axis_limits'", "true or false", "'yes'"]),
     (lambda t: t.replace('sheet = "A4"', 'sheet = "B5"'), ["key 'sheet'", "'B5'"]),
     (lambda t: t.replace("z_speed = 10", ""), ["missing key 'gcode.z_speed'"]),
     (lambda t: t + "\n[unused]\nx = 1\n", ["unknown key 'unused'"]),
