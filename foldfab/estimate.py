@@ -37,9 +37,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import numpy as np
 
-    from foldfab.devices import Motion
-
-    from foldfab.devices import DeviceProfile
+    from foldfab.devices import DeviceProfile, Motion
     from foldfab.interpret import Interpretation
 
 CONTINUATION_ANGLE = math.radians(1.0)
