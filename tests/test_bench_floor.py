@@ -14,50 +14,50 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from foldfab.devices import load_device
-from foldfab.estimate import move_times
+from foldfab.estimate import move_times, travel_times
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 from bench_fabrication import optimal_travel, travel_floor  # noqa: E402
 
 DEVICE = load_device("graphtec-ce6000")
+DEVICES = [DEVICE, load_device("grbl")]  # one limit for every direction; per-axis limits
 coordinate = st.integers(0, 300).map(float)
 end = st.tuples(coordinate, coordinate)
 stroke = st.tuples(end, end, st.sampled_from(["valley", "mountain"]))
 
 
-def best_travel(strokes, park: complex) -> float:
+def best_travel(strokes, park: complex, device=DEVICE) -> float:
     """The least travel time over every order (layers in order) and direction of ``strokes``."""
     layers = list(dict.fromkeys(s.layer for s in strokes))
-    motion = DEVICE.motion
     best = np.inf
     for order in itertools.permutations(strokes):
         if [layers.index(s.layer) for s in order] != sorted(layers.index(s.layer) for s in order):
             continue
         for flips in itertools.product((False, True), repeat=len(order)):
-            pen, gaps = np.array([park.real, park.imag]), []
+            pen, steps = np.array([park.real, park.imag]), []
             for s, flip in zip(order, flips):
                 a, b = (s.points[-1], s.points[0]) if flip else (s.points[0], s.points[-1])
-                gaps.append(np.hypot(*(a - pen)))
+                steps.append(a - pen)
                 pen = b
-            gaps.append(np.hypot(pen[0] - park.real, pen[1] - park.imag))
-            best = min(best, float(move_times(np.array(gaps), motion.travel_speed, motion.acceleration).sum()))
+            steps.append(np.array([park.real, park.imag]) - pen)
+            best = min(best, float(travel_times(np.array(steps), device.motion).sum()))
     return best
 
 
 @settings(max_examples=40, deadline=None)
-@given(raw=st.lists(stroke, min_size=1, max_size=5), park=end)
-def test_no_order_of_the_strokes_travels_less_than_the_floor(raw, park):
+@given(raw=st.lists(stroke, min_size=1, max_size=5), park=end, device=st.sampled_from(DEVICES))
+def test_no_order_of_the_strokes_travels_less_than_the_floor(raw, park, device):
     strokes = [SimpleNamespace(points=np.array([a, b]), layer=layer) for a, b, layer in raw]
-    floor = travel_floor(strokes, complex(*park), DEVICE)
-    assert floor <= best_travel(strokes, complex(*park)) + 1e-9
+    floor = travel_floor(strokes, complex(*park), device)
+    assert floor <= best_travel(strokes, complex(*park), device) + 1e-9
 
 
 @settings(max_examples=40, deadline=None)
-@given(raw=st.lists(stroke, min_size=1, max_size=5), park=end)
-def test_the_exact_order_is_the_best_of_every_order(raw, park):
+@given(raw=st.lists(stroke, min_size=1, max_size=5), park=end, device=st.sampled_from(DEVICES))
+def test_the_exact_order_is_the_best_of_every_order(raw, park, device):
     strokes = [SimpleNamespace(points=np.array([a, b]), layer=layer) for a, b, layer in raw]
-    assert optimal_travel(strokes, complex(*park), DEVICE) == pytest.approx(best_travel(strokes, complex(*park)),
-                                                                            abs=1e-9)
+    assert optimal_travel(strokes, complex(*park), device) == \
+        pytest.approx(best_travel(strokes, complex(*park), device), abs=1e-9)
 
 
 def test_the_exact_order_starts_a_closed_stroke_at_its_best_vertex():
