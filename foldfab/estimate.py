@@ -135,6 +135,19 @@ def junction_limits(before: np.ndarray, after: np.ndarray, speeds: float | np.nd
     return np.minimum(np.where(cos_theta < -0.999999, np.inf, limit), np.square(speeds))
 
 
+def junction_speeds(before: np.ndarray, after: np.ndarray, speed_before: float | np.ndarray,
+                    speed_after: float | np.ndarray, motion: Motion) -> np.ndarray:
+    """Squared speeds a profile allows through junctions between moves along the unit vectors
+    ``before`` and ``after`` at their nominal speeds: :func:`junction_limits` at the slower of
+    the two, with the acceleration taken along ``after - before`` (per axis with
+    ``axis_limits``), as GRBL's planner takes it."""
+    import numpy as np
+
+    _, acceleration = move_limits(np.subtract(after, before), 0.0, motion)
+    return junction_limits(before, after, np.minimum(speed_before, speed_after), acceleration,
+                           motion.junction_deviation)
+
+
 def plan_speeds(limits: np.ndarray, lengths: np.ndarray, acceleration: float | np.ndarray) -> np.ndarray:
     """Squared speeds at the n + 1 ends of n consecutive moves of ``lengths`` (mm): each as high
     as its ``limit`` allows while acceleration can reach it from the ends before and still
@@ -223,13 +236,9 @@ def planned_segments(points: np.ndarray, starts: np.ndarray, speeds: np.ndarray,
     units = steps / lengths[:, None]
     speed, acceleration = move_limits(steps, speeds[owner], motion)
     speed = np.broadcast_to(speed, lengths.shape)
-    turn = units[1:] - units[:-1]  # GRBL takes a junction's acceleration along this
-    _, bend = move_limits(turn, 0.0, motion)
     limits = np.zeros(len(lengths) + 1)  # at each end of each segment; polylines end at rest
     limits[1:-1] = np.where(owner[1:] == owner[:-1],
-                            junction_limits(units[:-1], units[1:], np.minimum(speed[:-1], speed[1:]), bend,
-                                            motion.junction_deviation),
-                            0.0)
+                            junction_speeds(units[:-1], units[1:], speed[:-1], speed[1:], motion), 0.0)
     ends = plan_speeds(limits, lengths, acceleration)
     return totals, segment_times(lengths, speed, ends[:-1], ends[1:], acceleration), owner
 

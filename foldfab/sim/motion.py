@@ -17,7 +17,7 @@ estimate scales them.
   all, as the estimate counts it) and any other starts a new run.
 * Junction speeds (a ``junction_deviation``): a pen-down move is a *planned* block that
   carries its length, speed and the highest entry speed its junction with the move
-  before allows (:func:`~foldfab.estimate.junction_limits`, as GRBL computes it when a
+  before allows (:func:`~foldfab.estimate.junction_speeds`, as GRBL computes it when a
   block enters its planner).  Its duration is fixed when it starts
   (:func:`plan_start`): it enters at the speed the block before left at, and leaves at
   the speed a backward pass over the blocks then in the planner allows, the last of
@@ -37,7 +37,7 @@ import math
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
-from foldfab.estimate import (CONTINUATION_ANGLE, junction_limits, move_limits, move_times, plan_speeds,
+from foldfab.estimate import (CONTINUATION_ANGLE, junction_speeds, move_limits, move_times, plan_speeds,
                               segment_times, travel_times)
 from foldfab.interpret import GcodeMachine, HPGLMachine, Stroke
 
@@ -169,9 +169,7 @@ class Timed:
         if length > 0:
             direction = (dx / length, dy / length)
             if self._heading is not None:
-                turn = (direction[0] - self._heading[0], direction[1] - self._heading[1])
-                limit = float(junction_limits(self._heading, direction, min(speed, self._nominal),
-                                              move_limits(turn, 0.0, motion)[1], motion.junction_deviation))
+                limit = float(junction_speeds(self._heading, direction, self._nominal, speed, motion))
             self._heading, self._nominal = direction, speed
         self.sink(Block(None, start, self.position, speed, self.mark(), planned=True,
                         length=length, entry_limit=limit, acceleration=acceleration))
