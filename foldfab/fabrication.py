@@ -165,7 +165,7 @@ def finish_plan(layout: PlotPlan, device: DeviceProfile, spec: FabricationSpec,
     park = park_position(device, layout.sheet)
     perforated = frozenset(("valley", "mountain")) if spec.strategy == "perforate" else frozenset()
     plan = optimize_plan(layout, optimize or spec.optimize, device.resolution, park,
-                         keep_vertices=perforated)
+                         keep_vertices=perforated, tool_changer=device.tool_changer)
     if not perforated:
         return plan
     doc = plan.document.clone()  # metadata only: the layers are added below
@@ -203,7 +203,7 @@ class Fabrication:
         """Pen-up travel of the plan (:func:`foldfab.optimize.travel`)."""
         from foldfab.optimize import travel
 
-        return travel(self.plan, park_position(self.device, self.plan.sheet))
+        return travel(self.plan, park_position(self.device, self.plan.sheet), self.device.tool_changer)
 
     @cached_property
     def travel_before(self) -> dict:
@@ -213,7 +213,7 @@ class Fabrication:
         if self.spec.optimize == "none":
             return self.travel_after
         unoptimized = finish_plan(self.layout, self.device, self.spec, optimize="none")
-        return travel(unoptimized, park_position(self.device, self.plan.sheet))
+        return travel(unoptimized, park_position(self.device, self.plan.sheet), self.device.tool_changer)
 
 
 def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None) -> Fabrication:

@@ -7,8 +7,10 @@ ends are that close, since scoring has chained the creases already), ``linesort`
 closed outlines relooped to start where the pen arrives, and of the sorted order
 and its reverse the one that enters and leaves the layer by less travel (its last
 line turned round if it then ends nearer the next layer or the park position).  Layers
-are never reordered.  :func:`travel` measures pen-up travel of a plan the way the plotter
-moves: from the park position, within and between layers (all passes), and back.
+are never reordered; at a pause the pen parks, so the layer after it is sorted from the
+park position.  :func:`travel` measures pen-up travel of a plan the way the plotter moves:
+from the park position, within and between layers (all passes), to the park position and
+back at every pause, and home.
 """
 
 from __future__ import annotations
@@ -17,33 +19,39 @@ import itertools
 
 import numpy as np
 
-from foldfab.plan import Pass, PlotPlan
+from foldfab.plan import Pause, PlotPlan, device_steps
 
 METHODS = ("none", "greedy", "two-opt")
 
 
 def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex = 0j,
-                  keep_vertices: frozenset[str] = frozenset()) -> PlotPlan:
+                  keep_vertices: frozenset[str] = frozenset(), tool_changer: bool = True) -> PlotPlan:
     """A copy of ``plan`` whose layers are merged, sorted and simplified by vpype.
 
     ``resolution`` (mm) bounds how far merging and simplification may move a point;
-    ``start`` is where the pen is before the first layer (the device's park position);
-    layers named in ``keep_vertices`` are not simplified (their vertices matter, e.g.
-    crease ends that perforation must spare).
+    ``start`` is where the pen is before the first layer and after every pause (the
+    device's park position); layers named in ``keep_vertices`` are not simplified (their
+    vertices matter, e.g. crease ends that perforation must spare); ``tool_changer`` false
+    means the device also stops to change tools (:func:`foldfab.plan.device_steps`).
     """
     if method == "none":
         return plan
     sort = "linesort --two-opt" if method == "two-opt" else "linesort"
     doc = plan.document.clone()  # metadata only: layers are added below, in plan order
     pen = start
-    passes = [step for step in plan.steps if isinstance(step, Pass)]
-    for index, step in enumerate(passes):
+    steps = [step for _, step in device_steps(plan, tool_changer)]
+    # what the pen meets, in order: a layer to draw, or a pause (where the device parks it)
+    meets = [step if isinstance(step, Pause) else plan.document.layers[step.layer_id] for step in steps]
+    for index, step in enumerate(steps):
+        if isinstance(step, Pause):
+            pen = start
+            continue
         lines = plan.document.layers[step.layer_id]
         result = lines.lines
         if _ends_meet(lines, resolution):
             result = _run(f"linemerge --tolerance {resolution}", result)
         result = _sort(result, sort, pen)
-        onward = _onward([plan.document.layers[p.layer_id] for p in passes[index + 1:]], start, resolution)
+        onward = _onward(meets[index + 1:], start, resolution)
         # The sorted order backwards (each line reversed) has the same inner travel: take the
         # direction that arrives and leaves by less.
         candidates = [_end_towards(_reloop(order, pen, resolution, onward), pen, onward)
@@ -219,11 +227,15 @@ class _Onward:
 
 
 def _onward(later: list, park: complex, tolerance: float) -> _Onward:
-    """What follows a layer whose later layers are ``later``: the nearest entry of the next
-    layer with lines; through a layer that is one closed loop, which the pen leaves where it
-    came in, on to what follows that; the park position after the last layer."""
+    """What follows a layer that the layers and pauses ``later`` follow: the nearest entry
+    of the next layer with lines; through a layer that is one closed loop, which the pen
+    leaves where it came in, on to what follows that; the park position at a pause and
+    after the last layer."""
     onward = _Onward(np.array([park]))
     for layer in reversed(later):
+        if isinstance(layer, Pause):
+            onward = _Onward(np.array([park]))
+            continue
         if not len(layer):
             continue
         lines = layer.lines
@@ -280,14 +292,18 @@ def _reloop(lines: list[np.ndarray], pen: complex, tolerance: float, onward: _On
     return out
 
 
-def travel(plan: PlotPlan, park: complex = 0j) -> dict:
-    """Pen-up travel in mm: per layer (inside it, all passes), between layers and to/from ``park``."""
+def travel(plan: PlotPlan, park: complex = 0j, tool_changer: bool = True) -> dict:
+    """Pen-up travel in mm: per layer (inside it, all passes), between layers, to the park
+    position and back at pauses (``tool_changer`` false: tool changes too, see
+    :func:`foldfab.plan.device_steps`) and from and to ``park`` at the start and end."""
     per_layer: dict[str, float] = {}
     between = 0.0
-    pen = park
+    pen, parked = park, True
     first = True
-    for step in plan.steps:
-        if not isinstance(step, Pass):
+    for _, step in device_steps(plan, tool_changer):
+        if isinstance(step, Pause):
+            per_layer["at pauses"] = per_layer.get("at pauses", 0.0) + abs(pen - park)
+            pen, parked = park, True
             continue
         lines = plan.document.layers.get(step.layer_id)
         if lines is None or len(lines) == 0:
@@ -298,10 +314,12 @@ def travel(plan: PlotPlan, park: complex = 0j) -> dict:
         if first:
             per_layer["from park"] = arrive
             first = False
+        elif parked:
+            per_layer["at pauses"] += arrive
         else:
             between += arrive
         per_layer[step.name] = per_layer.get(step.name, 0.0) + inside * step.tool.passes + loop_back * (step.tool.passes - 1)
-        pen = lines.lines[-1][-1]
+        pen, parked = lines.lines[-1][-1], False
     per_layer["between layers"] = between
     per_layer["to park"] = abs(pen - park)
     total = sum(per_layer.values())

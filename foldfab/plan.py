@@ -13,6 +13,7 @@ vpype or numpy at module level.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Union
 
 if TYPE_CHECKING:
@@ -46,7 +47,8 @@ class Pass:
 
 @dataclass(frozen=True)
 class Pause:
-    """Stop and let the operator act (flip the sheet, change the tool...)."""
+    """Stop and let the operator act (flip the sheet, change the tool...).  Every device
+    parks the pen there, so the pen-up travel there and back is part of the plot."""
 
     message: str
 
@@ -64,3 +66,21 @@ class PlotPlan:
     """Executed in this order; writers never reorder across steps."""
     sheet: tuple[float, float]
     """Sheet width and height in mm."""
+
+
+def device_steps(plan: PlotPlan, tool_changer: bool) -> Iterator[tuple[int, Step]]:
+    """The plan's steps as a device runs them, each with its index in ``plan.steps``.
+
+    A device without a tool changer (``tool_changer`` false) must stop for the operator
+    before a pass that draws with another tool than the last pass that drew anything: a
+    :class:`Pause` saying so comes first, with the index of that pass.  The program writers
+    and the travel optimizer both take the steps from here, so that they park the pen at
+    the same places.
+    """
+    pen = None
+    for index, step in enumerate(plan.steps):
+        if isinstance(step, Pass) and any(len(line) for line in plan.document.layers.get(step.layer_id, ())):
+            if pen is not None and step.tool.pen != pen and not tool_changer:
+                yield index, Pause(f"Load tool {step.tool.pen} for the {step.name} pass, then resume.")
+            pen = step.tool.pen
+        yield index, step

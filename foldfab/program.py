@@ -14,7 +14,8 @@ offsets) together with two lists a streaming sender and the interpreters need:
 
 Both writers share :func:`sweeps`, which validates the plan against the device,
 converts coordinates, refuses designs outside the reachable area (never crops),
-expands ``passes`` and inserts tool-change pauses for devices without a pen changer.
+expands ``passes`` and inserts tool-change pauses for devices without a pen changer
+(:func:`foldfab.plan.device_steps`).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from operator import attrgetter
 from typing import TYPE_CHECKING, Union
 
 from foldfab.errors import FoldfabError
-from foldfab.plan import Pass, Pause, PlotPlan, Tool
+from foldfab.plan import Pass, Pause, PlotPlan, Tool, device_steps
 
 if TYPE_CHECKING:
     import numpy as np
@@ -159,19 +160,12 @@ def sweeps(plan: PlotPlan, device: DeviceProfile) -> list[Union[Sweep, Stop]]:
     converted = {lid: _to_device(frame, lines) for lid, lines in layers.items()}
 
     result: list[Union[Sweep, Stop]] = []
-    pen = None
-    for index, step in enumerate(plan.steps):
+    for index, step in device_steps(plan, device.tool_changer):
         if isinstance(step, Pause):
             result.append(Stop(index, step.message))
-            continue
-        if not converted[step.layer_id]:
-            continue
-        if pen is not None and step.tool.pen != pen and not device.tool_changer:
-            result.append(Stop(index, f"Load tool {step.tool.pen} for the {step.name} pass, "
-                                      "then resume."))
-        pen = step.tool.pen
-        result.extend(Sweep(index, step.layer_id, step.name, repeat, step.tool,
-                            converted[step.layer_id]) for repeat in range(step.tool.passes))
+        elif converted[step.layer_id]:
+            result.extend(Sweep(index, step.layer_id, step.name, repeat, step.tool,
+                                converted[step.layer_id]) for repeat in range(step.tool.passes))
     return result
 
 

@@ -12,8 +12,9 @@ from hypothesis import strategies as st
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.fabrication import fabricate, parse_fabrication
+from foldfab.fabrication import fabricate, finish_plan, parse_fabrication
 from foldfab.interpret import interpret
+from foldfab.program import write_program
 from foldfab.scoring import _chains, crease_lines, outline_loops
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -298,3 +299,32 @@ def test_layer_override_reaches_the_program():
     assert len(cut) == 2 and all(s.force == 30 for s in cut)
     with pytest.raises(FoldfabError, match=r"layers\.cut\.force"):
         fabricate(design, device, spec(layers={"cut": {"force": "hard"}}))
+
+
+@pytest.mark.parametrize("device_name", DEVICES)
+@pytest.mark.parametrize("strategy", ["force", "perforate", "two-sided"])
+@pytest.mark.parametrize("job", JOBS, ids=[j.stem for j in JOBS])
+def test_reported_travel_is_the_programs(job, strategy, device_name):
+    """The optimizer's travel figures (the report's "pen-up travel") are what the program does:
+    the interpreter's pen-up moves, park at every pause included, before and after optimizing."""
+    device = load_device(device_name)
+    fab = fabricate(load_design(job), device, spec(strategy=strategy))
+    unoptimized = finish_plan(fab.layout, device, fab.spec, optimize="none")
+    for plan, figures in ((fab.plan, fab.travel_after), (unoptimized, fab.travel_before)):
+        run = interpret(write_program(plan, device), device, plan.sheet)
+        rounding = (len(run.travels) + 1) * 1.5 * device.resolution
+        assert figures["total"] == pytest.approx(run.travel_length, abs=rounding)
+
+
+@pytest.mark.parametrize("device_name", ["graphtec-ce6000", "grbl"])
+def test_reported_travel_counts_the_park_at_a_tool_change(device_name):
+    """A cutter without a tool changer parks for the operator to load the cut's own tool (and a
+    layer drawn twice comes back to its start in between)."""
+    device = load_device(device_name)
+    layers = {"cut": {"pen": 2}, "mountain": {"passes": 2}}
+    fab = fabricate(load_design(ROOT / "jobs" / "star.toml"), device, spec(layers=layers))
+    run = interpret(fab.program, device, fab.plan.sheet)
+    assert [p.message for p in run.pauses] == ["Load tool 2 for the cut pass, then resume."]
+    assert fab.travel_after["layers"]["at pauses"] > 0
+    rounding = (len(run.travels) + 1) * 1.5 * device.resolution
+    assert fab.travel_after["total"] == pytest.approx(run.travel_length, abs=rounding)

@@ -156,3 +156,66 @@ def test_the_last_closed_line_of_a_layer_starts_where_coming_in_and_going_on_add
     # a closed line that is not the layer's last starts nearest the pen
     first, _ = _reloop([SQUARE, np.array([200, 300])], pen, 0.025, home)
     assert first[0] == 100 and first[-1] == 100
+
+
+steps = st.lists(st.one_of(st.just("pause"), st.tuples(st.integers(1, 3), st.booleans())), max_size=8)
+
+
+@settings(max_examples=100, deadline=None)
+@given(steps=steps)
+def test_device_steps_stop_before_each_other_tool_that_draws(steps):
+    """A device without a tool changer stops before a pass that draws with another tool than
+    the last pass that drew; empty passes and pauses change nothing; indices stay the plan's."""
+    import vpype as vp
+
+    from foldfab.plan import Pass, Pause, PlotPlan, Tool, device_steps
+
+    doc = vp.Document()
+    plan_steps = []
+    for index, step in enumerate(steps):
+        if step == "pause":
+            plan_steps.append(Pause("flip"))
+        else:
+            pen, draws = step
+            doc.add(vp.LineCollection([np.array([index, index + 1j])] if draws else []), index + 1)
+            plan_steps.append(Pass(index + 1, f"layer{index}", Tool(pen, None, 10.0)))
+    plan = PlotPlan(doc, plan_steps, (100.0, 100.0))
+    assert list(device_steps(plan, True)) == list(enumerate(plan_steps))
+    out = list(device_steps(plan, False))
+    assert [s for s in out if not (isinstance(s[1], Pause) and s[1].message.startswith("Load"))] == \
+        list(enumerate(plan_steps))
+    last = None
+    for position, (index, step) in enumerate(out):
+        if not isinstance(step, Pass) or not len(doc.layers.get(step.layer_id, [])):
+            continue
+        before = out[position - 1] if position else None
+        changes = last is not None and step.tool.pen != last
+        assert changes == (before is not None and before == (index, Pause(
+            f"Load tool {step.tool.pen} for the {step.name} pass, then resume.")))
+        last = step.tool.pen
+
+
+def test_a_layer_after_a_pause_is_sorted_from_the_park_position():
+    """The device parks the pen at a pause: the next layer starts at its line nearest the park
+    position, not at the one nearest where the layer before ended; travel counts the way there."""
+    import vpype as vp
+
+    from foldfab.optimize import optimize_plan, travel
+    from foldfab.plan import Pass, Pause, PlotPlan, Tool
+
+    doc = vp.Document()
+    doc.add(vp.LineCollection([np.array([100 + 100j, 150 + 100j])]), 1)
+    doc.add(vp.LineCollection([np.array([160 + 100j, 160 + 150j]), np.array([10 + 10j, 10 + 40j])]), 2)
+    tool = Tool(1, None, 10.0)
+    park = 0j
+    for pause, first in ((False, 160 + 100j), (True, 10 + 10j)):
+        steps = [Pass(1, "valley", tool), *([Pause("flip")] if pause else []), Pass(2, "mountain", tool)]
+        plan = optimize_plan(PlotPlan(doc, steps, (200.0, 200.0)), "greedy", 0.025, park)
+        assert plan.document.layers[2].lines[0][0] == first
+        layers = travel(plan, park)["layers"]
+        if pause:
+            valley_end = plan.document.layers[1].lines[-1][-1]
+            assert layers["at pauses"] == pytest.approx(abs(valley_end - park) + abs(first - park))
+            assert layers["between layers"] == 0
+        else:
+            assert "at pauses" not in layers
