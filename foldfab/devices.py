@@ -56,6 +56,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 from foldfab.errors import FoldfabError
 from foldfab.plan import Tool
+from foldfab.xdg import foldfab_dir
 
 GCODE_DECIMALS = 3
 """Decimals of the millimetre coordinates in G-code (GRBL takes more; a micrometre is plenty)."""
@@ -307,8 +308,7 @@ def list_devices() -> list[str]:
 
 
 def _user_dir() -> Path:
-    base = os.environ.get("XDG_CONFIG_HOME") or os.path.join(os.path.expanduser("~"), ".config")
-    return Path(base) / "foldfab" / "devices"
+    return foldfab_dir("XDG_CONFIG_HOME") / "devices"
 
 
 def _builtin_dir() -> Path:

@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Iterator, Protocol, Sequence
 
 from foldfab.errors import FoldfabError
+from foldfab.xdg import foldfab_dir
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -62,8 +63,7 @@ def default_queue_path() -> Path:
     """``$FOLDFAB_QUEUE``, else ``$XDG_DATA_HOME/foldfab/queue.sqlite3`` (default ``~/.local/share``)."""
     if os.environ.get("FOLDFAB_QUEUE"):
         return Path(os.environ["FOLDFAB_QUEUE"])
-    base = os.environ.get("XDG_DATA_HOME") or os.path.join(os.path.expanduser("~"), ".local", "share")
-    return Path(base) / "foldfab" / "queue.sqlite3"
+    return foldfab_dir("XDG_DATA_HOME") / "queue.sqlite3"
 
 
 # --- records -----------------------------------------------------------------------------

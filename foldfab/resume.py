@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import re
 import secrets
 import threading
@@ -47,6 +46,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 from foldfab.errors import FoldfabError
+from foldfab.xdg import foldfab_dir
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -66,8 +66,7 @@ def program_hash(program: Program) -> str:
 
 def state_dir() -> Path:
     """``$XDG_STATE_HOME/foldfab/resume`` (default ``~/.local/state/foldfab/resume``)."""
-    base = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
-    return Path(base) / "foldfab" / "resume"
+    return foldfab_dir("XDG_STATE_HOME") / "resume"
 
 
 @dataclass(frozen=True)
