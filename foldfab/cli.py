@@ -375,8 +375,10 @@ def format_job(job, events) -> str:
              f"device       {job.device} at {job.port}",
              f"priority     {job.priority}",
              f"job file     {job.job_path} (as it was when queued)",
-             f"progress     {job.acked_bytes} of {job.program_bytes} bytes acknowledged ({job.percent:.1f}%)"
-             + (f", {job.progress}" if job.progress else ""),
+             f"progress     {job.percent:.1f}% done"
+             + (f" ({job.drawn_mm:.1f} of {job.drawn_total_mm:.1f} mm drawn)" if job.drawn_total_mm else "")
+             + (f", {job.progress}" if job.progress else "")
+             + f"; {job.acked_bytes} of {job.program_bytes} bytes acknowledged",
              f"attempts     {job.attempts}"]
     if job.worker:
         lines.append(f"worker       {job.worker}, lease until {_when(job.lease_expires)}")

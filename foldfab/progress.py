@@ -52,9 +52,7 @@ class ProgressEvent:
     @property
     def fraction(self) -> float:
         """Part of the drawn length done (bytes when nothing is drawn)."""
-        if self.drawn_total > 0:
-            return min(self.drawn / self.drawn_total, 1.0)
-        return min(self.acknowledged / self.total, 1.0) if self.total else 1.0
+        return done_share(self.drawn, self.drawn_total, self.acknowledged, self.total)
 
     def as_dict(self) -> dict:
         data = asdict(self)
@@ -62,6 +60,15 @@ class ProgressEvent:
             data[key] = round(data[key], 2)
         data["percent"] = round(100 * self.fraction, 1)
         return data
+
+
+def done_share(drawn: float, drawn_total: float, acknowledged: int, total: int) -> float:
+    """How much of a job is done, 0..1: the share of its drawn length, as progress displays and
+    the queue's list show it; the share of its bytes when it draws nothing (or its drawn length
+    is not known)."""
+    if drawn_total > 0:
+        return min(drawn / drawn_total, 1.0)
+    return min(acknowledged / total, 1.0) if total else 1.0
 
 
 class JobProgress:

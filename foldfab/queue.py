@@ -122,11 +122,18 @@ class JobRecord:
     cancel_requested: bool
     attempts: int
     reason: str | None
+    drawn_mm: float
+    """Length the plotter has drawn of the program's strokes (acknowledged)."""
+    drawn_total_mm: float
+    """Length of all the program's strokes; 0 until a worker has started the job."""
 
     @property
     def percent(self) -> float:
-        """Acknowledged share of the program, 0..100."""
-        return 100.0 * self.acked_bytes / self.program_bytes if self.program_bytes else 100.0
+        """Share done, 0..100: of the drawn length, as ``foldfab plot`` shows it (of the bytes
+        before a worker has measured it)."""
+        from foldfab.progress import done_share
+
+        return 100.0 * done_share(self.drawn_mm, self.drawn_total_mm, self.acked_bytes, self.program_bytes)
 
     def as_dict(self) -> dict:
         """Plain data for JSON output."""
@@ -269,8 +276,9 @@ class QueueStore(Protocol):
         """Jobs a claim would take, in claim order (without claiming them)."""
 
     def heartbeat(self, job_id: int, worker: WorkerId, lease: float, acked_bytes: int | None = None,
-                  progress: str | None = None, pauses_done: int | None = None) -> Control:
-        """Renew the lease, persist progress, read cancel/continue requests."""
+                  progress: str | None = None, pauses_done: int | None = None,
+                  drawn: tuple[float, float] | None = None) -> Control:
+        """Renew the lease, persist progress (``drawn``: mm drawn and in all), read cancel/continue requests."""
 
     def log(self, job_id: int, kind: str, message: str) -> None:
         """Add an event to the job's log."""
@@ -280,7 +288,7 @@ class QueueStore(Protocol):
 
     def finish(self, job_id: int, worker: WorkerId, state: str, message: str,
                acked_bytes: int | None = None, pauses_done: int | None = None,
-               progress: str | None = None) -> bool:
+               progress: str | None = None, drawn: tuple[float, float] | None = None) -> bool:
         """End the worker's hold: ``done``, ``failed``, ``cancelled`` or ``interrupted``; False if it was lost."""
 
     def close(self) -> None:
@@ -342,12 +350,17 @@ MIGRATIONS: tuple[str, ...] = (
     CREATE INDEX jobs_by_port ON jobs(port, state);
     CREATE INDEX jobs_by_snapshot ON jobs(snapshot_id);
     """,
+    # version 3: the length drawn and in all, so that list shows the share done as plot does
+    """
+    ALTER TABLE jobs ADD COLUMN drawn_mm REAL NOT NULL DEFAULT 0;
+    ALTER TABLE jobs ADD COLUMN drawn_total_mm REAL NOT NULL DEFAULT 0;
+    """,
 )
 SCHEMA_VERSION = len(MIGRATIONS)
 
 _JOB_COLUMNS = """j.id, s.name, s.job_path, s.device, j.port, j.priority, j.copy, j.copies,
     {state}, j.created, j.updated, j.worker, j.lease_expires, j.acked_bytes, s.program_bytes,
-    j.progress, j.pauses_done, j.cancel_requested, j.attempts, {reason}"""
+    j.progress, j.pauses_done, j.cancel_requested, j.attempts, {reason}, j.drawn_mm, j.drawn_total_mm"""
 # A running or waiting job whose worker is dead (lease expired, or its process on this machine
 # gone) is reported as what the next write to the queue makes it.
 _DEAD = ("(j.lease_expires < :now OR (j.worker_host = :host AND j.worker_pid IS NOT NULL "
@@ -633,7 +646,7 @@ class SqliteQueueStore:
                                    "can be retried")
             where = "from the start, on a new sheet" if restart or not job.acked_bytes else \
                 f"from byte {job.acked_bytes} of {job.program_bytes} (the last acknowledged stroke)"
-            values = {"acked_bytes": 0, "pauses_done": 0, "progress": ""} if restart else {}
+            values = {"acked_bytes": 0, "pauses_done": 0, "progress": "", "drawn_mm": 0} if restart else {}
             if port is not None:
                 values["port"] = port
                 where += f", at {port} (was {job.port})"
@@ -709,12 +722,13 @@ class SqliteQueueStore:
                 self.finish(job.id, worker, "failed", str(exc))
 
     def heartbeat(self, job_id: int, worker: WorkerId, lease: float, acked_bytes: int | None = None,
-                  progress: str | None = None, pauses_done: int | None = None) -> Control:
+                  progress: str | None = None, pauses_done: int | None = None,
+                  drawn: tuple[float, float] | None = None) -> Control:
         with self._write() as db:
             owned = self._owned(db, job_id, worker)
             if owned is None:
                 return Control("lost", False, True)
-            values = _given(acked_bytes=acked_bytes, progress=progress, pauses_done=pauses_done)
+            values = _given(acked_bytes=acked_bytes, progress=progress, pauses_done=pauses_done, drawn=drawn)
             self._set(db, job_id, lease_expires=time.time() + lease, **values)
             return Control(*owned, False)
 
@@ -733,13 +747,13 @@ class SqliteQueueStore:
 
     def finish(self, job_id: int, worker: WorkerId, state: str, message: str,
                acked_bytes: int | None = None, pauses_done: int | None = None,
-               progress: str | None = None) -> bool:
+               progress: str | None = None, drawn: tuple[float, float] | None = None) -> bool:
         if state not in ("done", "failed", "cancelled", "interrupted"):
             raise ValueError(f"a job cannot finish as {state!r}")
         with self._write() as db:
             if self._owned(db, job_id, worker) is None:
                 return False
-            values = _given(acked_bytes=acked_bytes, pauses_done=pauses_done, progress=progress)
+            values = _given(acked_bytes=acked_bytes, pauses_done=pauses_done, progress=progress, drawn=drawn)
             self._set(db, job_id, state=state, worker=None, lease_expires=None, worker_host=None,
                       worker_pid=None, cancel_requested=0, reason=None if state == "done" else message,
                       **values)
@@ -747,8 +761,10 @@ class SqliteQueueStore:
             return True
 
 
-def _given(**values) -> dict:
-    """The values that are not None."""
+def _given(drawn: tuple[float, float] | None = None, **values) -> dict:
+    """The values that are not None, as columns (``drawn``: drawn_mm and drawn_total_mm)."""
+    if drawn is not None:
+        values.update(drawn_mm=drawn[0], drawn_total_mm=drawn[1])
     return {key: value for key, value in values.items() if value is not None}
 
 

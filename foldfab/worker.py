@@ -163,6 +163,9 @@ class StartPoint:
     """Bytes of the streamed program before that point (tool state, travel)."""
     stroke: int = 0
     """Strokes of the stored program already drawn."""
+    drawn: tuple[float, float] | None = None
+    """Length (mm) of those strokes and of all the stored program's; None when the streamed
+    program is the stored one (its own progress says)."""
 
     def original(self, offset: int) -> int:
         """Stored-program offset of streamed-program byte ``offset``."""
@@ -184,16 +187,18 @@ def start_point(program: Program, device: DeviceProfile, acked: int, pauses_done
     if locate is not None and stroke < len(strokes):
         stroke, found = locate(stroke)
     found = f"; {found}" if found else ""
+    lengths = [s.length for s in strokes]
+    drawn = (sum(lengths[:stroke]), sum(lengths))
     if stroke >= len(strokes):
         return StartPoint(None, f"all {len(strokes)} strokes were drawn before the interruption{found}", (),
-                          stroke=stroke)
+                          stroke=stroke, drawn=drawn)
     resumed = resume_program(program, device, stroke, pauses_done)
     cut = strokes[stroke].offset
     prelude = len(resumed.text) - (len(program.text) - cut)
     originals = [p.offset for p in program.pauses]
     counts = tuple(bisect.bisect_right(originals, cut + max(p.offset - prelude, 0)) for p in resumed.pauses)
     return StartPoint(resumed, f"resumed at stroke {stroke + 1} of {len(strokes)} (byte {cut}){found}", counts,
-                      cut, prelude, stroke)
+                      cut, prelude, stroke, drawn)
 
 
 class _Heartbeat(threading.Thread):
@@ -206,6 +211,7 @@ class _Heartbeat(threading.Thread):
         self.acked: int | None = None
         self.progress: str | None = None
         self.pauses_done: int | None = None
+        self.drawn: tuple[float, float] | None = None
         self.cancel_requested = False
         self.lost: str | None = None
         self.renewed = time.monotonic()
@@ -227,7 +233,7 @@ class _Heartbeat(threading.Thread):
         """One heartbeat; gives the job up if the lease could not be renewed in time."""
         try:
             control = self.store.heartbeat(self.job_id, self.worker, self.options.lease, self.acked,
-                                           self.progress, self.pauses_done)
+                                           self.progress, self.pauses_done, self.drawn)
         except FoldfabError as exc:
             if time.monotonic() - self.renewed > 0.8 * self.options.lease:
                 self.give_up(f"the lease could not be renewed for {self.options.lease:g} s ({exc})")
@@ -309,6 +315,7 @@ class Worker:
         except FoldfabError as exc:
             return self._end(job, heartbeat, "failed", f"cannot start: {exc}")
         self.ui.job_started(job, start.note)
+        heartbeat.drawn = start.drawn
         if start.program is None:
             return self._end(job, heartbeat, "done", start.note)
         heartbeat.start()
@@ -347,7 +354,7 @@ class Worker:
         if heartbeat.is_alive():
             heartbeat.finish()
         if state != "lost" and not self.store.finish(job.id, self.id, state, message, acked, heartbeat.pauses_done,
-                                                     heartbeat.progress):
+                                                     heartbeat.progress, heartbeat.drawn):
             state, message = "lost", f"{message}; but the job was no longer this worker's, so the queue keeps " \
                                      "what the next writer decided"
         self.ui.job_ended(job, state, message)
@@ -414,6 +421,8 @@ class _Tracker:
         done, self.total = self.start.stroke + event.strokes_done, self.start.stroke + event.strokes_total
         self.heartbeat.acked = self.acked
         self.heartbeat.progress = f"stroke {done} of {self.total} done, {event.layer}"
+        before, total = self.start.drawn or (0.0, event.drawn_total)
+        self.heartbeat.drawn = (before + event.drawn, total)
         if done != self.done:
             self.done = done
             self.heartbeat.beat()

@@ -281,6 +281,9 @@ def test_upgrade_from_schema_version_1(tmp_path):
     store = SqliteQueueStore(path)
     job = store.job(1)
     assert (job.state, job.acked_bytes, job.progress) == ("interrupted", 4, "")
+    # no drawn length measured yet: the share done is that of the bytes
+    assert (job.drawn_mm, job.drawn_total_mm) == (0, 0)
+    assert job.percent == pytest.approx(100 * 4 / len(snap.program.text))
     claim = store.claim(WorkerId.current(), 30)
     assert claim.snapshot == snap and claim.job.acked_bytes == 4
     store.close()
@@ -296,7 +299,7 @@ def test_newer_schema_and_foreign_files_are_refused(tmp_path):
     newer = tmp_path / "newer.sqlite3"
     with sqlite3.connect(newer) as db:
         db.execute(f"PRAGMA user_version = {SCHEMA_VERSION + 1}")
-    with pytest.raises(FoldfabError, match="schema version 3, but this foldfab knows only up to 2: upgrade"):
+    with pytest.raises(FoldfabError, match=f"schema version {SCHEMA_VERSION + 1}, but this foldfab knows only up to {SCHEMA_VERSION}: upgrade"):
         SqliteQueueStore(newer).jobs()
     other = tmp_path / "other.sqlite3"
     with sqlite3.connect(other) as db:

@@ -217,6 +217,14 @@ def test_two_sided_job_waits_until_queue_continue(store, snapshots, capsys):
     job = store.job(1)
     assert job.acked_bytes == snap.program.pauses[0].offset
     assert "Flip the sheet" in [e for e in store.events(1) if e.kind == "pause"][0].message
+    # list shows the share done as foldfab plot does: of the drawn length (the valleys), not of the bytes
+    at_pause = JobProgress(snap.program, load_device(snap.device)).event("pause", job.acked_bytes, 0, 0.0)
+    valleys = sum(s.length for s in interpret(snap.program, load_device(snap.device)).strokes if s.layer == "valley")
+    assert (job.drawn_mm, job.drawn_total_mm) == pytest.approx((valleys, at_pause.drawn_total))
+    assert job.percent == pytest.approx(100 * at_pause.fraction)
+    assert abs(job.percent - 100 * job.acked_bytes / job.program_bytes) > 1
+    assert main(["queue", "list", "--queue", str(store.path)]) == 0
+    assert f"{job.percent:5.1f}%" in capsys.readouterr().out
     time.sleep(0.3)
     assert store.job(1).state == "waiting"  # still: nobody answered
     assert main(["queue", "continue", "1", "--queue", str(store.path)]) == 0
@@ -264,9 +272,16 @@ def test_disconnect_interrupts_and_the_next_run_resumes_without_losing_a_stroke(
     job = store.job(1)
     assert "serial link failed: cable pulled; stopped at byte" in job.reason and "7 of" in job.reason
     assert main(["queue", "show", "1", "--queue", str(store.path)]) == 0
+    interrupted = store.job(1)
+    strokes = interpret(snap.program, load_device(snap.device)).strokes
+    assert interrupted.drawn_mm == pytest.approx(sum(s.length for s in strokes[:7]))
     summary = Worker(store, Console(["continue"] * 3), WorkerOptions(), runner=plotter).run()
     assert summary.ended == {"done": [1]}
     assert plotter.drawn["sim://a"] == original_strokes(snap)
+    # the resumed run's progress counts in the stored program's length, from where it stopped
+    done = store.job(1)
+    assert (done.drawn_mm, done.drawn_total_mm, done.percent) == pytest.approx(
+        (sum(s.length for s in strokes),) * 2 + (100.0,))
     assert "resumed at byte" in [e for e in store.events(1) if e.kind == "started"][1].message
 
 
