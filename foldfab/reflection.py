@@ -31,6 +31,13 @@ from foldfab.errors import DesignError
 #: relative tolerance (of the design's size) below which a length counts as zero
 REL_TOL = 1e-9
 
+STRAIGHT_TURN = 1e-7
+"""A trajectory corner that turns by less (radians) is straight: it has no mirror.  Its point
+lies within 1e-7 of a segment's length of the straight line (0.1 µm on a metre, far below a
+plotter's step), and its mirror would run so nearly along the path that only line elements
+as near to the path could meet it; nearer still, the arithmetic cannot tell the mirror from
+the path at all."""
+
 
 @dataclass(frozen=True)
 class Reflection:
@@ -92,7 +99,7 @@ def _simplify_trajectory(points: np.ndarray) -> tuple[np.ndarray, list[int]]:
         i = int(np.argmax(reversal)) + 1
         raise DesignError(f"trajectory: the path turns back on itself at point {i} {points[i].tolist()}; "
                           "a 180-degree turn has no mirror plane: remove or move that point")
-    keep = np.concatenate([[True], turn > 1e-12, [True]])
+    keep = np.concatenate([[True], turn > STRAIGHT_TURN, [True]])
     index = np.flatnonzero(keep)
     return points[keep], index.tolist()
 
@@ -132,7 +139,7 @@ def reflect(profile: np.ndarray, trajectory: np.ndarray) -> Reflection:
     h0 = np.cross(r0, d[0])
 
     mirror = _unit(d[:-1] - d[1:])  # normals at the K-1 interior corners
-    corner_seam = closed and np.linalg.norm(d[-1] - d[0]) > 1e-12
+    corner_seam = closed and np.linalg.norm(d[-1] - d[0]) > STRAIGHT_TURN
     if closed and np.linalg.norm(d[-1] + d[0]) <= 1e-9:
         raise DesignError(f"trajectory: the path turns back on itself at its start point {trajectory[0].tolist()}; "
                           "a 180-degree turn has no mirror plane: move the start point")
@@ -164,7 +171,10 @@ def reflect(profile: np.ndarray, trajectory: np.ndarray) -> Reflection:
     negative = seglen < -tol
     if np.any(negative):
         j, k = map(int, np.argwhere(negative)[0])
-        raise DesignError(_negative_message(j, k, profile, sigma, coef_u, coef_v, seglen[j, k], labels))
+        ends = d[[-1, 0]] if corner_seam else np.zeros((2, 3))
+        chords = np.linalg.norm(np.vstack([ends[1] - ends[0], d[1:] - d[:-1], ends[1] - ends[0]]), axis=1)
+        turns = np.degrees(2 * np.arcsin(np.minimum(chords / 2, 1.0)))  # of the path at each plane
+        raise DesignError(_negative_message(j, k, profile, sigma, coef_u, coef_v, seglen[j, k], labels, turns))
     zero = np.abs(seglen) <= tol
     if np.any(zero):
         # Snap zero-length segments exactly, so their end points coincide.
@@ -206,7 +216,12 @@ def _check_closure(r_end, h_end, r0, h0, seam_normal, corners: int) -> None:
                           f"{abs(angle):.3g} degrees about the seam; make the trajectory planar or symmetric so the turns cancel")
 
 
-def _negative_message(j, k, profile, sigma, coef_u, coef_v, length, labels) -> str:
+SHALLOW_TURN = 5.0
+"""Degrees: a mirror at a corner that turns the path by less runs so nearly along the path
+that an error it causes says so (the point may belong on a straight line)."""
+
+
+def _negative_message(j, k, profile, sigma, coef_u, coef_v, length, labels, turns) -> str:
     u, v = profile[j]
     c0 = sigma[k + 1] - sigma[k]
     cu = -(coef_u[k + 1] - coef_u[k])
@@ -221,5 +236,8 @@ def _negative_message(j, k, profile, sigma, coef_u, coef_v, length, labels) -> s
                   f"increase v of profile point {j} (or [profile].offset[1]) to at least {limit:.4g} mm")
     else:  # pragma: no cover - a negative length always depends on u or v
         advice = "enlarge the trajectory"
+    shallow = [m for m in (k, k + 1) if 0 < turns[m] < SHALLOW_TURN]
+    hint = "".join(f"; {labels[m]} turns the path by only {turns[m]:.2g} degrees, so it runs nearly along "
+                   "the path: if that point belongs on a straight line, remove it" for m in shallow)
     return (f"line element {j} (profile point {j} at u={u:g}, v={v:g}) meets {labels[k + 1]} before {labels[k]}: "
-            f"its segment {k} would be {length:.4g} mm long; {advice}, or enlarge the trajectory")
+            f"its segment {k} would be {length:.4g} mm long; {advice}, or enlarge the trajectory{hint}")

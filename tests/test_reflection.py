@@ -202,3 +202,28 @@ def test_glue_tab_lies_on_the_first_segment(n, radius, prof, tab_frac):
     assert cp.tab_faces.sum() == len(profile) - 1
     width, _ = cp.sheet_size
     assert width == pytest.approx(np.ptp(grid.x) + tab, rel=1e-9) or width >= np.ptp(grid.x)
+
+
+@pytest.mark.parametrize("closed", [False, True])
+@pytest.mark.parametrize("turn", [1e-11, 1e-9, 5e-8])
+def test_a_corner_that_barely_turns_is_straight(turn, closed):
+    """A point a hair off the straight line (rounding, a digitised path) adds no mirror: the design
+    is the one without it, and no arithmetic divides by a mirror that runs along the path."""
+    import warnings
+
+    profile = np.array([[0.0, 0.0], [3.0, 10.0], [0.0, 20.0]])
+    square = np.array([[0, 0], [100, 0], [100, 100], [0, 100], [0, 0]], dtype=float)
+    plain = square if closed else square[:3]
+    bent = np.insert(plain, 1, [50, 25 * turn], axis=0)  # the path turns there by 2 * (25 turn) / 50
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got, want = reflect(profile, bent), reflect(profile, plain)
+    np.testing.assert_allclose(got.x, want.x, atol=1e-6)
+    np.testing.assert_allclose(got.points, want.points, atol=1e-6)
+
+
+def test_a_shallow_corner_that_breaks_the_design_is_named_with_its_turn():
+    profile = np.array([[0.0, 0.0], [3.0, 10.0], [0.0, 20.0]])
+    with pytest.raises(DesignError, match=r"the mirror at trajectory point 1 \(100, 0\) turns the path by only "
+                                          r"0\.0057 degrees.*if that point belongs on a straight line, remove it"):
+        reflect(profile, np.array([[0, 0], [100, 0], [200, 0.01], [300, 1]]))
