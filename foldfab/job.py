@@ -91,6 +91,8 @@ class TomlTable:
         raise FoldfabError(f"{self.where(key)}: {message}")
 
     def has(self, key: str) -> bool:
+        """Is ``key`` given?  (Either way it is a key this table knows: see :meth:`check_unknown`.)"""
+        self.used.add(key)
         return key in self.data
 
     def get(self, key: str, default: Any = None, *, required: bool = False) -> Any:

@@ -282,7 +282,11 @@ def test_design_too_big_names_sizes_and_largest_scale():
     ({"scale": 0}, r"\[fabrication\]\.scale: must be greater than 0"),
     ({"optimize": "best"}, r"\[fabrication\]\.optimize"),
     ({"perforate": {"valley": [1, 1, 1]}}, r"\[fabrication\.perforate\]\.valley: expected an even-length list"),
-    ({"layers": {"fold": {}}}, r"\[fabrication\.layers\]\.fold: unknown key"),
+    ({"layers": {"fold": {}}}, r"\[fabrication\.layers\]\.fold: unknown key; expected one of: cut, mountain, valley$"),
+    ({"perforation": {}}, r"\[fabrication\]\.perforation: unknown key; expected one of: flip_edge, "
+                          r"layers, margin, optimize, perforate, rotate, scale, sheet, strategy$"),
+    ({"perforate": {"gap": 1}}, r"\[fabrication\.perforate\]\.gap: unknown key; expected one of: clearance, "
+                                r"mountain, valley$"),
     ({"colour": "red"}, r"\[fabrication\]\.colour: unknown key"),
 ])
 def test_bad_fabrication_tables(table, message):
