@@ -109,9 +109,20 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
     pts = design.crease_pattern.vertices
     bounds = (complex(*pts.min(axis=0)), complex(*pts.max(axis=0)))
     try:
-        return fit(bounds, sheet, area, spec.margin, spec.scale, spec.rotate), sheet
+        placement = fit(bounds, sheet, area, spec.margin, spec.scale, spec.rotate)
     except FoldfabError as exc:
         raise FoldfabError(f"{design.job.path}: {device.name}: {exc}") from None
+    width, height = placement.size
+    if min(width, height) < SMALLEST_STEPS * device.resolution:
+        raise FoldfabError(
+            f"{design.job.path}: {device.name}: the design is {width:.3g} x {height:.3g} mm at scale {spec.scale:g}, "
+            f"under {SMALLEST_STEPS} of the device's steps ({device.resolution:g} mm) across, so its creases would run "
+            "together; set a larger [fabrication].scale (1 is the design's own size)")
+    return placement, sheet
+
+
+SMALLEST_STEPS = 10
+"""A placed design must be at least this many plotter steps wide and high."""
 
 
 def build_plan(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None) -> PlotPlan:

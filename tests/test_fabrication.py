@@ -276,6 +276,19 @@ def test_design_too_big_names_sizes_and_largest_scale():
         fabricate(design, device, spec(sheet="A4", scale=largest * 1.001))
 
 
+@pytest.mark.parametrize("device_name", DEVICES)
+def test_a_design_scaled_below_ten_plotter_steps_is_refused(device_name):
+    """A mistyped scale would stab the tool at one point; the error gives the size it came to."""
+    design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
+    device = load_device(device_name)
+    width, height = np.ptp(design.crease_pattern.vertices, axis=0)
+    smallest = 10 * device.resolution / min(width, height)
+    with pytest.raises(FoldfabError, match=rf"mm at scale {smallest / 2:g}, under 10 of the device's steps "
+                                           rf"\({device.resolution:g} mm\) across.*larger \[fabrication\]\.scale"):
+        fabricate(design, device, spec(scale=smallest / 2))
+    fabricate(design, device, spec(scale=smallest * 1.01))
+
+
 @pytest.mark.parametrize("table, message", [
     ({"strategy": "laser"}, r"\[fabrication\]\.strategy: expected one of"),
     ({"sheet": "B5"}, r"\[fabrication\]\.sheet: expected"),
