@@ -106,10 +106,14 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
 
     sheet = spec.sheet or device.sheet
     area = device.frame(sheet).device_rect_on_sheet(*device.plottable_area)
+    reach = "the device's plottable area"
     pts = design.crease_pattern.vertices
     bounds = (complex(*pts.min(axis=0)), complex(*pts.max(axis=0)))
     try:
-        placement = fit(bounds, sheet, area, spec.margin, spec.scale, spec.rotate)
+        if spec.strategy == "two-sided":
+            area = both_sides(area, sheet, spec.flip_edge)
+            reach += f" on both sides of the sheet (flipped {FLIPS[spec.flip_edge]})"
+        placement = fit(bounds, sheet, area, spec.margin, spec.scale, spec.rotate, reach)
     except FoldfabError as exc:
         raise FoldfabError(f"{design.job.path}: {device.name}: {exc}") from None
     width, height = placement.size
@@ -119,6 +123,29 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
             f"under {SMALLEST_STEPS} of the device's steps ({device.resolution:g} mm) across, so its creases would run "
             "together; set a larger [fabrication].scale (1 is the design's own size)")
     return placement, sheet
+
+
+FLIPS = {"left": "left-right", "top": "top-bottom"}
+
+
+def both_sides(area: tuple[float, float, float, float], sheet: tuple[float, float],
+               flip_edge: str) -> tuple[float, float, float, float]:
+    """The part of ``area`` (x0, y0, x1, y1, sheet mm) that the device reaches on the front of
+    the sheet and, once it is flipped about ``flip_edge``, on its back: the back's strokes are
+    the front's mirrored, so a two-sided design must lie where both land within reach."""
+    x0, y0, x1, y1 = area
+    axis = 0 if flip_edge == "left" else 1
+    lo, hi, size = (x0, x1, sheet[0]) if axis == 0 else (y0, y1, sheet[1])
+    lo, hi = max(lo, size - hi), min(hi, size - lo)
+    if hi <= lo:
+        name = "x" if axis == 0 else "y"
+        other = "top" if flip_edge == "left" else "left"
+        raise FoldfabError(
+            f"the device reaches {name} {area[axis]:g}..{area[axis + 2]:g} mm of the {size:g} mm sheet, and "
+            f"flipped {FLIPS[flip_edge]} its back would need {name} {size - area[axis + 2]:g}..{size - area[axis]:g} mm: "
+            f"no part of the sheet is reached on both sides; set [fabrication].flip_edge = \"{other}\" or use a "
+            "sheet the device reaches whole")
+    return (lo, y0, hi, y1) if axis == 0 else (x0, lo, x1, hi)
 
 
 SMALLEST_STEPS = 10

@@ -39,10 +39,11 @@ class Placement:
 
 
 def fit(bounds: tuple[complex, complex], sheet: tuple[float, float], area: tuple[float, float, float, float],
-        margin: float, scale: float, rotate: str) -> Placement:
+        margin: float, scale: float, rotate: str, reach: str = "the device's plottable area") -> Placement:
     """Centre the design in the usable region: the sheet less ``margin``, within the device ``area`` (x0, y0, x1, y1).
 
-    ``rotate`` is "auto" (turn by 90 degrees only when that is needed to fit), "yes" or "no".
+    ``rotate`` is "auto" (turn by 90 degrees only when that is needed to fit), "yes" or "no";
+    ``reach`` says what ``area`` is, for the errors.
     """
     lo, hi = bounds
     w, h = hi.real - lo.real, hi.imag - lo.imag
@@ -53,7 +54,7 @@ def fit(bounds: tuple[complex, complex], sheet: tuple[float, float], area: tuple
     room = (x1 - x0, y1 - y0)
     if room[0] <= 0 or room[1] <= 0:
         raise FoldfabError(f"the sheet {sheet[0]:g} x {sheet[1]:g} mm with margin {margin:g} mm leaves no room inside "
-                           f"the device's plottable area; reduce [fabrication].margin or choose another sheet")
+                           f"{reach}; reduce [fabrication].margin or choose another sheet")
 
     def fits(rot: bool) -> bool:
         pw, ph = (h, w) if rot else (w, h)
@@ -66,7 +67,7 @@ def fit(bounds: tuple[complex, complex], sheet: tuple[float, float], area: tuple
         best = math.floor(best * 1e4) / 1e4  # rounded down, so the scale we suggest does fit
         raise FoldfabError(
             f"the design is {w * scale:.1f} x {h * scale:.1f} mm at scale {scale:g}, but only {room[0]:.1f} x {room[1]:.1f} mm "
-            f"is usable (sheet {sheet[0]:g} x {sheet[1]:g} mm less {margin:g} mm margins, within the device's plottable area); "
+            f"is usable (sheet {sheet[0]:g} x {sheet[1]:g} mm less {margin:g} mm margins, within {reach}); "
             f"the largest scale that fits is {best:.4f}{'' if rotate != 'no' else ' (rotation is off)'}: "
             f"set [fabrication].scale, a larger sheet, or a smaller margin")
     pw, ph = ((h, w) if chosen else (w, h))

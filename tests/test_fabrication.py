@@ -345,3 +345,39 @@ def test_reported_travel_counts_the_park_at_a_tool_change(device_name):
     assert fab.travel_after["layers"]["at pauses"] > 0
     rounding = (len(run.travels) + 1) * 1.5 * device.resolution
     assert fab.travel_after["total"] == pytest.approx(run.travel_length, abs=rounding)
+
+
+@settings(max_examples=40, deadline=None)
+@given(width=st.floats(150, 450), height=st.floats(150, 450), margin=st.floats(0, 20),
+       scale=st.floats(0.2, 1.0), flip=st.sampled_from(["left", "top"]))
+def test_two_sided_placement_keeps_both_sides_within_reach(width, height, margin, scale, flip):
+    """The HP 7475A reaches only part of a large sheet: a two-sided design is placed where it
+    and its mirror image on the back both lie within reach, or refused by the placement with the
+    reason (never by the program writer's last check)."""
+    device = load_device("hp7475a")
+    design = load_design(ROOT / "jobs" / "star.toml")
+    table = {"strategy": "two-sided", "sheet": [width, height], "margin": margin, "scale": scale, "flip_edge": flip}
+    try:
+        fab = fabricate(design, device, parse_fabrication(table, "star"))
+    except FoldfabError as exc:
+        assert "reaches only" not in str(exc)
+        assert "both sides of the sheet" in str(exc) or "no part of the sheet is reached on both sides" in str(exc) \
+            or "leaves no room" in str(exc) or "under 10 of the device's steps" in str(exc)
+        return
+    x0, y0, x1, y1 = device.frame(fab.plan.sheet).device_rect_on_sheet(*device.plottable_area)
+    run = interpret(fab.program, device, fab.plan.sheet)
+    points = np.concatenate([s.points for s in run.strokes])
+    tol = device.resolution
+    assert points[:, 0].min() >= x0 - tol and points[:, 0].max() <= x1 + tol
+    assert points[:, 1].min() >= y0 - tol and points[:, 1].max() <= y1 + tol
+
+
+def test_a_flip_that_takes_the_back_out_of_reach_says_so():
+    device = load_device("hp7475a")
+    design = load_design(ROOT / "jobs" / "star.toml")
+    table = {"strategy": "two-sided", "sheet": "A3", "scale": 0.5, "flip_edge": "top"}
+    with pytest.raises(FoldfabError, match=r"star.toml: hp7475a: the device reaches y 224\.\.416 mm of the 420 mm sheet, "
+                                           r"and flipped top-bottom its back would need y 4\.\.196 mm: .*"
+                                           r"flip_edge = \"left\""):
+        fabricate(design, device, parse_fabrication(table, "star"))
+    fabricate(design, device, parse_fabrication(dict(table, flip_edge="left"), "star"))
