@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Iterator, Protocol, Sequence
 
 from foldfab.errors import FoldfabError
+from foldfab.progress import done_share
 from foldfab.xdg import foldfab_dir
 
 if TYPE_CHECKING:
@@ -131,8 +132,6 @@ class JobRecord:
     def percent(self) -> float:
         """Share done, 0..100: of the drawn length, as ``foldfab plot`` shows it (of the bytes
         before a worker has measured it)."""
-        from foldfab.progress import done_share
-
         return 100.0 * done_share(self.drawn_mm, self.drawn_total_mm, self.acked_bytes, self.program_bytes)
 
     def as_dict(self) -> dict:
