@@ -24,7 +24,9 @@ from foldfab.plan import Pass, Pause, PlotPlan
 
 STRATEGIES = ("force", "perforate", "two-sided")
 LAYERS = {"valley": (1, "#0000ff"), "mountain": (2, "#ff0000"), "cut": (3, "#000000")}
-FLIP_EDGES = ("left", "top")
+FLIPS = {"left": "left-right (about the vertical axis)", "top": "top-bottom (about the horizontal axis)"}
+"""How the sheet of a two-sided job turns, by ``flip_edge``."""
+FLIP_EDGES = tuple(FLIPS)
 
 
 @dataclass(frozen=True)
@@ -94,8 +96,7 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
 
 def flip_message(spec: FabricationSpec, device: DeviceProfile) -> str:
     """The operator's instruction at the flip of a two-sided job."""
-    axis = "left-right (about the vertical axis)" if spec.flip_edge == "left" else "top-bottom (about the horizontal axis)"
-    return (f"Valleys are scored. Flip the sheet {axis}, "
+    return (f"Valleys are scored. Flip the sheet {FLIPS[spec.flip_edge]}, "
             f"put its corner back against the {device.origin} registration corner of {device.name}, then continue: "
             "mountains are scored on the back, then the outline is cut.")
 
@@ -123,9 +124,6 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
             f"under {SMALLEST_STEPS} of the device's steps ({device.resolution:g} mm) across, so its creases would run "
             "together; set a larger [fabrication].scale (1 is the design's own size)")
     return placement, sheet
-
-
-FLIPS = {"left": "left-right", "top": "top-bottom"}
 
 
 def both_sides(area: tuple[float, float, float, float], sheet: tuple[float, float],

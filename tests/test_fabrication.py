@@ -377,7 +377,7 @@ def test_a_flip_that_takes_the_back_out_of_reach_says_so():
     design = load_design(ROOT / "jobs" / "star.toml")
     table = {"strategy": "two-sided", "sheet": "A3", "scale": 0.5, "flip_edge": "top"}
     with pytest.raises(FoldfabError, match=r"star.toml: hp7475a: the device reaches y 224\.\.416 mm of the 420 mm sheet, "
-                                           r"and flipped top-bottom its back would need y 4\.\.196 mm: .*"
+                                           r"and flipped top-bottom \(about the horizontal axis\) its back would need y 4\.\.196 mm: .*"
                                            r"flip_edge = \"left\""):
         fabricate(design, device, parse_fabrication(table, "star"))
     fabricate(design, device, parse_fabrication(dict(table, flip_edge="left"), "star"))
