@@ -1,12 +1,19 @@
-"""Atomic file output: a file is either written whole or not at all."""
+"""Atomic file output: a file, or a set of files, is either written whole or not at all.
+
+Each file goes to a temporary file beside its target first and is renamed into place
+only when every file of the set is complete, so a failure leaves every target as it
+was.  A symbolic link is written through (the file it points to is replaced, the link
+stays); an existing target that is not a regular file (``/dev/stdout``, a FIFO) is
+written in place, since renaming over it would replace the device itself.
+"""
 
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
-from contextlib import contextmanager
+from collections.abc import Sequence
 from pathlib import Path
-from typing import IO, Iterator
 
 
 def _umask() -> int:
@@ -15,34 +22,81 @@ def _umask() -> int:
     return mask
 
 
-@contextmanager
-def atomic_open(path: str | os.PathLike, mode: str = "w", **kwargs) -> Iterator[IO]:
-    """Open a temporary file beside ``path``; rename it over ``path`` only on success."""
-    path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=directory)
-    try:
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file a new file's usual mode
-        with os.fdopen(fd, mode, **kwargs) as handle:
-            yield handle
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
+class _Staged:
+    """One file of a set: its data in a temporary file beside the target, or held for a
+    target that is written in place."""
+
+    def __init__(self, path: str | os.PathLike, data: bytes) -> None:
+        self.given = path
+        self.path = Path(path)
+        self.data = data
+        self.tmp: str | None = None
         try:
-            os.unlink(tmp)
+            mode = os.stat(self.path).st_mode  # through a symbolic link
         except FileNotFoundError:
-            pass
-        raise
+            mode = None
+        if mode is not None and stat.S_ISDIR(mode):
+            raise IsADirectoryError(21, "Is a directory", str(self.path))
+        if mode is not None and not stat.S_ISREG(mode):
+            return  # a device or FIFO: written in place by commit()
+        self.path = Path(os.path.realpath(self.path)) if self.path.is_symlink() else self.path
+        directory = self.path.parent if str(self.path.parent) else Path(".")
+        fd, self.tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=directory)
+        try:
+            os.chmod(self.tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file a new file's usual mode
+            with os.fdopen(fd, "wb") as handle:
+                handle.write(data)
+                handle.flush()
+                os.fsync(handle.fileno())
+        except BaseException:
+            self.discard()
+            raise
+
+    def commit(self) -> None:
+        if self.tmp is None:
+            with open(self.path, "wb") as handle:
+                handle.write(self.data)
+        else:
+            os.replace(self.tmp, self.path)
+            self.tmp = None
+
+    def discard(self) -> None:
+        if self.tmp is not None:
+            try:
+                os.unlink(self.tmp)
+            except FileNotFoundError:
+                pass
+            self.tmp = None
+
+
+def write_files(files: Sequence[tuple[str | os.PathLike, bytes]]) -> None:
+    """Write every ``(path, data)`` whole, or none of them.
+
+    An ``OSError`` names the path that failed, as given, in its ``filename``; every
+    target is then as it was, unless a rename itself failed after all the data was
+    written (the one step that cannot be undone: the targets renamed before it stay
+    replaced).
+    """
+    staged: list[_Staged] = []
+    path: str | os.PathLike = ""
+    try:
+        for path, data in files:
+            staged.append(_Staged(path, data))
+        for item in sorted(staged, key=lambda item: item.tmp is not None):  # in place first: they may fail
+            path = item.given
+            item.commit()
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror or str(exc), os.fspath(path)) from exc
+    finally:
+        for item in staged:
+            item.discard()
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (UTF-8, ``\\n`` line endings)."""
-    with atomic_open(path, "w", encoding="utf-8", newline="\n") as handle:
-        handle.write(text)
+    """Write ``text`` to ``path`` atomically (UTF-8, ``\\n`` line endings as given)."""
+    write_files([(path, text.encode("utf-8"))])
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically."""
-    with atomic_open(path, "wb") as handle:
-        handle.write(data)
+    write_files([(path, data)])

@@ -30,20 +30,16 @@ def _design_outputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
 def cmd_design(args: argparse.Namespace) -> int:
     """Build a design; print its summary and write the requested files."""
     from foldfab.design import load_design, summary
-    from foldfab.output import write_design_file
+    from foldfab.output import write_design_files
 
     outputs = _design_outputs(args)
     design = load_design(args.job, allow_penetration=args.allow_penetration)
-    written: list[Path] = []
     try:
-        for kind, path in outputs:
-            write_design_file(design, kind, path)
-            written.append(path)
-    except OSError as exc:  # e.g. the path is a folder or not writable: one line, and no partial set of files
+        write_design_files(design, outputs)
+    except OSError as exc:  # e.g. the path is a folder or not writable: one line, and every file as it was
         from foldfab.errors import FoldfabError
 
-        for done in written:
-            done.unlink(missing_ok=True)
+        kind, path = next((k, p) for k, p in outputs if str(p) == exc.filename)
         raise FoldfabError(f"--{kind} {path}: cannot write: {exc.strerror or exc}") from None
     info = summary(design)
     info["written"] = [str(p) for _, p in outputs]

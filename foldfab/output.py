@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
-from foldfab.atomic import write_bytes, write_text
+from foldfab.atomic import write_files
 from foldfab.design import Design
 from foldfab.errors import FoldfabError
 
@@ -21,25 +22,29 @@ def kind_of(path: Path) -> str:
                            f"use one of {', '.join(SUFFIX_KINDS)}") from None
 
 
-def write_design_file(design: Design, kind: str, path: Path) -> None:
-    """Write ``design`` as ``kind`` (fold, svg, cp, mesh) to ``path``, all or nothing."""
+def design_file_data(design: Design, kind: str, suffix: str = "") -> bytes:
+    """The bytes of ``design`` as ``kind`` (fold, svg, cp, mesh; a mesh's format by ``suffix``)."""
     cp = design.crease_pattern
     if kind == "fold":
         from foldfab.formats import fold
 
-        write_text(path, fold.dumps(cp, design.job.name))
-    elif kind == "svg":
+        return fold.dumps(cp, design.job.name).encode()
+    if kind == "svg":
         from foldfab.formats import svg
 
-        write_text(path, svg.dumps(cp))
-    elif kind == "cp":
+        return svg.dumps(cp).encode()
+    if kind == "cp":
         from foldfab.formats import oripa
 
-        write_text(path, oripa.dumps(cp))
-    elif kind == "mesh":
+        return oripa.dumps(cp).encode()
+    if kind == "mesh":
         from foldfab.mesh import to_trimesh
 
-        data = to_trimesh(cp).export(file_type=path.suffix.lower().lstrip("."))
-        write_bytes(path, data.encode() if isinstance(data, str) else data)
-    else:  # pragma: no cover - the CLI offers only the kinds above
-        raise ValueError(kind)
+        data = to_trimesh(cp).export(file_type=suffix.lower().lstrip("."))
+        return data.encode() if isinstance(data, str) else data
+    raise ValueError(kind)  # pragma: no cover - the callers offer only the kinds above
+
+
+def write_design_files(design: Design, outputs: Sequence[tuple[str, Path]]) -> None:
+    """Write ``design`` as each ``(kind, path)``: all of them, or none (see :mod:`foldfab.atomic`)."""
+    write_files([(path, design_file_data(design, kind, path.suffix)) for kind, path in outputs])

@@ -664,6 +664,19 @@ def test_output_path_is_a_folder(capsys, tmp_path):
     assert list((tmp_path / "taken.cp").iterdir()) == []
 
 
+def test_a_failed_write_keeps_the_files_that_were_there(capsys, tmp_path):
+    # Outputs that existed before stay as they were, not replaced and then deleted.
+    (tmp_path / "keep.fold").write_text("previous fold")
+    (tmp_path / "keep.cp").write_text("previous cp")
+    (tmp_path / "taken.svg").mkdir()
+    rc, out, err = run(capsys, "design", REPO / "jobs" / "star.toml", "--fold", tmp_path / "keep.fold",
+                       "--svg", tmp_path / "taken.svg", "--cp", tmp_path / "keep.cp")
+    assert_one_line_error(rc, out, err, "--svg", "taken.svg", "cannot write")
+    assert (tmp_path / "keep.fold").read_text() == "previous fold"
+    assert (tmp_path / "keep.cp").read_text() == "previous cp"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.cp", "keep.fold", "taken.svg"]
+
+
 # --------------------------------------------------------------------------- a real process
 
 def test_real_process_error(tmp_path):

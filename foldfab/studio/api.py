@@ -416,13 +416,13 @@ class Studio:
 
     def export(self, request: dict) -> dict:
         """Write the crease pattern or model: FOLD, SVG, ORIPA .cp or a mesh, by the file's suffix."""
-        from foldfab.output import SUFFIX_KINDS, kind_of, write_design_file
+        from foldfab.output import SUFFIX_KINDS, kind_of, write_design_files
 
         design = self._build(request)
         target = self._target(request, design.job.path, tuple(SUFFIX_KINDS))
         kind = kind_of(target)
         try:
-            write_design_file(design, kind, target)
+            write_design_files(design, [(kind, target)])
         except OSError as exc:
             raise ApiError(f"{target}: cannot write: {exc.strerror or exc}", cause={"view": "file"}) from None
         return {"written": str(target), "kind": kind}
