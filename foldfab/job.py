@@ -21,6 +21,11 @@ from typing import Any, Mapping
 from foldfab.errors import FoldfabError
 
 TEMPLATES = ("regular", "star", "polyline")
+LENGTH_LIMIT = 1e6
+"""Millimetres (a kilometre): no coordinate, radius or length of a job may be larger.  Past
+it a design is no sheet of paper; and points are told apart to a billionth of the design's
+size (``reflection.REL_TOL``), so a larger trajectory blurs its profile's finer points
+(a radius of 1e12 mm made points 1 mm apart "the same point")."""
 
 
 @dataclass(frozen=True)
@@ -111,15 +116,16 @@ class TomlTable:
             return None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             self.fail(key, f"expected a number, got {_type_name(value)} {value!r}")
-        value = float(value)
+        given, value = value, _float(value)
         if not math.isfinite(value):
-            self.fail(key, f"expected a finite number, got {value}")
+            self.fail(key, f"expected a finite number{' of a sensible size' if isinstance(given, int) else ''}, "
+                           f"got {_shown(given)}")
         if minimum is not None and value < minimum:
-            self.fail(key, f"must be at least {minimum:g}, got {value:g}")
+            self.fail(key, f"must be at least {minimum:.10g}, got {value:.10g}")
         if exclusive_minimum is not None and value <= exclusive_minimum:
-            self.fail(key, f"must be greater than {exclusive_minimum:g}, got {value:g}")
+            self.fail(key, f"must be greater than {exclusive_minimum:.10g}, got {value:.10g}")
         if maximum is not None and value > maximum:
-            self.fail(key, f"must be at most {maximum:g}, got {value:g}")
+            self.fail(key, f"must be at most {maximum:.10g}, got {value:.10g}")
         return value
 
     def integer(self, key: str, default: int | None = None, *, required: bool = False,
@@ -164,9 +170,11 @@ class TomlTable:
                 width = len(point)
             elif len(point) != width:
                 self.fail(f"{key}[{i}]", f"has {len(point)} coordinates but point 0 has {width}; use one form for all points")
-            if not all(math.isfinite(float(c)) for c in point):
-                self.fail(f"{key}[{i}]", f"coordinates must be finite numbers, got {point!r}")
-            out.append(tuple(float(c) for c in point))
+            coordinates = tuple(_float(c) for c in point)
+            if not all(abs(c) <= LENGTH_LIMIT for c in coordinates):  # NaN too
+                self.fail(f"{key}[{i}]", f"coordinates must be finite numbers within ±{LENGTH_LIMIT:,.0f} mm, "
+                                         f"got {_shown(point)}")
+            out.append(coordinates)
         return tuple(out)
 
     def pair(self, key: str, default: tuple[float, float]) -> tuple[float, float]:
@@ -175,9 +183,10 @@ class TomlTable:
             return default
         if (not isinstance(value, list) or len(value) != 2
                 or any(isinstance(c, bool) or not isinstance(c, (int, float)) for c in value)
-                or not all(math.isfinite(float(c)) for c in value)):
-            self.fail(key, f"expected a pair of finite numbers [a, b], got {value!r}")
-        return (float(value[0]), float(value[1]))
+                or not all(abs(_float(c)) <= LENGTH_LIMIT for c in value)):
+            self.fail(key, f"expected a pair of finite numbers [a, b] within ±{LENGTH_LIMIT:,.0f} mm, "
+                           f"got {_shown(value)}")
+        return (_float(value[0]), _float(value[1]))
 
     def check_unknown(self, allowed: set[str] | None = None) -> None:
         allowed = self.used if allowed is None else allowed
@@ -186,9 +195,29 @@ class TomlTable:
             self.fail(unknown[0], f"unknown key; expected one of: {', '.join(sorted(allowed))}")
 
 
+def _float(value: int | float) -> float:
+    """``value`` as a float; a whole number too large for one (TOML allows 400 digits) is infinite."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf
+
+
+def _shown(value: Any) -> str:
+    """``value`` for an error message, a runaway number cut short."""
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
 def _type_name(value: Any) -> str:
     return {dict: "a table", list: "a list", str: "a string", bool: "a boolean",
             int: "an integer", float: "a number"}.get(type(value), type(value).__name__)
+
+
+SVG_SAMPLES_LIMIT = 100_000
+"""Most points an SVG path may be sampled into (as many as a trajectory may have corners)."""
+SVG_TOLERANCE_FLOOR = 0.001
+"""mm: the finest chord error an SVG curve is sampled to (a plotter's step is 0.025 mm)."""
 
 
 def _svg_source(table: TomlTable, base: Path) -> SvgSource:
@@ -198,8 +227,8 @@ def _svg_source(table: TomlTable, base: Path) -> SvgSource:
         table.fail("path", f"expected a path id (string) or index (whole number), got {path_value!r}")
     if isinstance(path_value, int) and path_value < 0:
         table.fail("path", f"a path index must be 0 or more, got {path_value}")
-    samples = table.integer("samples", None, minimum=2)
-    tolerance = table.number("tolerance", None, exclusive_minimum=0.0)
+    samples = table.integer("samples", None, minimum=2, maximum=SVG_SAMPLES_LIMIT)
+    tolerance = table.number("tolerance", None, minimum=SVG_TOLERANCE_FLOOR)
     if samples is not None and tolerance is not None:
         table.fail("samples", "give either samples or tolerance, not both")
     resolved = (base / file).resolve()
@@ -228,12 +257,12 @@ def _parse_trajectory(table: TomlTable, base: Path) -> TrajectorySpec:
         template = table.string("template", required=True, choices=TEMPLATES)
         if template == "regular":
             params = {"corners": table.integer("corners", required=True, minimum=3, maximum=100000),
-                      "radius": table.number("radius", required=True, exclusive_minimum=0.0)}
+                      "radius": table.number("radius", required=True, exclusive_minimum=0.0, maximum=LENGTH_LIMIT)}
             spec = TrajectorySpec(template, params)
         elif template == "star":
             params = {"points": table.integer("points", required=True, minimum=2, maximum=100000),
-                      "outer_radius": table.number("outer_radius", required=True, exclusive_minimum=0.0),
-                      "inner_radius": table.number("inner_radius", required=True, exclusive_minimum=0.0)}
+                      "outer_radius": table.number("outer_radius", required=True, exclusive_minimum=0.0, maximum=LENGTH_LIMIT),
+                      "inner_radius": table.number("inner_radius", required=True, exclusive_minimum=0.0, maximum=LENGTH_LIMIT)}
             if params["inner_radius"] == params["outer_radius"]:
                 table.fail("inner_radius", "must differ from outer_radius (equal radii give a regular polygon: use template = \"regular\")")
             spec = TrajectorySpec(template, params)
@@ -245,7 +274,7 @@ def _parse_trajectory(table: TomlTable, base: Path) -> TrajectorySpec:
 
 def _parse_crease(table: TomlTable) -> CreaseSpec:
     spec = CreaseSpec(flat_angle=table.number("flat_angle", 1.0, minimum=0.0, maximum=180.0),
-                      glue_tab=table.number("glue_tab", 0.0, minimum=0.0))
+                      glue_tab=table.number("glue_tab", 0.0, minimum=0.0, maximum=LENGTH_LIMIT))
     table.check_unknown()
     return spec
 
@@ -281,6 +310,9 @@ def job_from_data(data: dict[str, Any], path: str | Path = "<job>", text: str = 
     fabrication = data.get("fabrication", {})
     if not isinstance(fabrication, dict):
         raise FoldfabError(f"{source}: [fabrication]: expected a table")
+    from foldfab.fabrication import parse_fabrication
+
+    parse_fabrication(fabrication, source)  # a mistake there is the job's, whichever command reads it
     return Job(path, name, profile, trajectory, crease, fabrication, text)
 
 
@@ -288,7 +320,7 @@ def load_job(path: str | Path) -> Job:
     """Read and validate a job file."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (some Windows editors) is no mistake
     except FileNotFoundError:
         raise FoldfabError(f"{path}: job file not found") from None
     except (OSError, UnicodeDecodeError) as exc:

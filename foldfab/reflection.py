@@ -121,7 +121,9 @@ def reflect(profile: np.ndarray, trajectory: np.ndarray) -> Reflection:
     _check_polyline(profile, "profile", tol)
     _check_polyline(trajectory, "trajectory", tol)
 
-    closed = bool(np.all(trajectory[0] == trajectory[-1]))
+    closed = bool(np.linalg.norm(trajectory[-1] - trajectory[0]) <= tol)  # an SVG path's relative moves miss by 1e-15
+    if closed:
+        trajectory = np.concatenate([trajectory[:-1], trajectory[:1]])
     traj, original = _simplify_trajectory(trajectory)
 
     seg = np.diff(traj, axis=0)
@@ -210,7 +212,8 @@ def _check_closure(r_end, h_end, r0, h0, seam_normal, corners: int) -> None:
                           "add or remove a corner")
     if seam_normal is not None:
         r_end, h_end = _reflect(r_end, seam_normal), _reflect(h_end, seam_normal)
-    if np.linalg.norm(r_end - r0) > 1e-9 or np.linalg.norm(h_end - h0) > 1e-9:
+    tol = 1e-9 + 1e-12 * corners  # each reflection rounds a little: 1.2e-9 after 100,000 of them
+    if np.linalg.norm(r_end - r0) > tol or np.linalg.norm(h_end - h0) > tol:
         angle = np.degrees(np.arctan2(np.dot(np.cross(r0, r_end), np.cross(r0, h0)), np.dot(r0, r_end)))
         raise DesignError(f"trajectory: this closed 3D trajectory does not close: its mirrors turn the profile by "
                           f"{abs(angle):.3g} degrees about the seam; make the trajectory planar or symmetric so the turns cancel")

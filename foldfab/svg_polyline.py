@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from foldfab.errors import FoldfabError
+from foldfab.job import LENGTH_LIMIT
 
 _UNIT_MM = {"": 25.4 / 96, "px": 25.4 / 96, "mm": 1.0, "cm": 10.0, "in": 25.4,
             "pt": 25.4 / 72, "pc": 25.4 / 6, "q": 0.25}
@@ -31,9 +32,13 @@ def _length_mm(value: str | None, where: str) -> float | None:
     if value is None:
         return None
     match = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([a-zA-Z%]*)\s*", value)
-    if not match or match.group(2).lower() not in _UNIT_MM:
+    try:
+        number = float(match.group(1)) if match else None
+    except ValueError:  # "e", "1-2": the pattern lets them through
+        number = None
+    if number is None or not np.isfinite(number) or match.group(2).lower() not in _UNIT_MM:
         raise FoldfabError(f"{where}: unsupported SVG length {value!r}; use a number with mm, cm, in, pt, pc or px")
-    return float(match.group(1)) * _UNIT_MM[match.group(2).lower()]
+    return number * _UNIT_MM[match.group(2).lower()]
 
 
 _ALIGN = {f"x{x}Y{y}": (fx, fy) for x, fx in (("Min", 0.0), ("Mid", 0.5), ("Max", 1.0))
@@ -73,6 +78,8 @@ def _page_transform(root, where: str) -> tuple[float, float, float, float, float
             vx, vy, vw, vh = (float(v) for v in re.split(r"[\s,]+", view_box.strip()))
         except ValueError:
             raise FoldfabError(f"{where}: viewBox {view_box!r} is not four numbers") from None
+        if not np.all(np.isfinite([vx, vy, vw, vh])):
+            raise FoldfabError(f"{where}: viewBox {view_box!r} is not four finite numbers")
         if vw <= 0 or vh <= 0:
             raise FoldfabError(f"{where}: viewBox {view_box!r} has no area")
         align, slice_ = _aspect(root.get("preserveAspectRatio"), where)
@@ -212,7 +219,12 @@ def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = Non
         raise FoldfabError(f"{file}: cannot read SVG: {exc}") from None
     root = doc.tree.getroot()
     order = {id(el): i for i, el in enumerate(root.iter())}
-    paths = sorted((p for p in doc.paths() if len(p) > 0), key=lambda p: order.get(id(p.element), 0))
+    try:
+        drawn = doc.paths()
+    except (ValueError, IndexError, TypeError, ZeroDivisionError) as exc:  # svgpathtools' parser and transforms
+        raise FoldfabError(f"{file}: cannot read its paths: {exc}; check the d attributes (and transforms) "
+                           "in an SVG editor") from None
+    paths = sorted((p for p in drawn if len(p) > 0), key=lambda p: order.get(id(p.element), 0))
     if isinstance(path, str):
         chosen = [p for p in paths if p.element.get("id") == path]
         if not chosen:
@@ -226,6 +238,15 @@ def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = Non
     if not chosen_path.iscontinuous():
         raise FoldfabError(f"{where}: the chosen path of {file} has several pieces (subpaths); use one continuous path")
     sx, sy, min_x, bottom, left, base = _page_transform(root, f"{file}")
+    ends = np.array([[seg.start, seg.end] for seg in chosen_path])
+    if not np.all(np.isfinite(ends)):
+        raise FoldfabError(f"{where}: the chosen path of {file} has a point that is not a finite number; "
+                           "check its d attribute")
+    x0, x1, y0, y1 = chosen_path.bbox()
+    if max(abs(left + (x - min_x) * sx) for x in (x0, x1)) > LENGTH_LIMIT or \
+            max(abs(base + (bottom - y) * sy) for y in (y0, y1)) > LENGTH_LIMIT:
+        raise FoldfabError(f"{where}: the chosen path of {file} reaches beyond ±{LENGTH_LIMIT:,.0f} mm; "
+                           "check the file's width, height and viewBox")
     pts = _sample(chosen_path, samples, tolerance or DEFAULT_TOLERANCE, max(sx, sy))
     out = np.column_stack([left + (pts.real - min_x) * sx, base + (bottom - pts.imag) * sy])
     keep = np.ones(len(out), bool)

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from foldfab.errors import FoldfabError
-from foldfab.job import load_job, parse_job
+from foldfab.job import LENGTH_LIMIT, load_job, parse_job
 
 JOBS = sorted((Path(__file__).parent.parent / "jobs").glob("*.toml"))
 
@@ -236,6 +236,28 @@ def test_non_finite_numbers(name, value, key):
     assert key in message and "finite" in message
 
 
+HUGE = "1" + "0" * 400  # TOML's reader takes it; no float holds it
+
+
+@pytest.mark.parametrize("name, value, key, expected", [
+    ("radius", HUGE, "[trajectory].radius", "expected a finite number of a sensible size, got 1000"),
+    ("radius", "1e12", "[trajectory].radius", "must be at most 1000000, got 1e+12"),
+    ("outer_radius", "1000000.5", "[trajectory].outer_radius", "must be at most 1000000, got 1000000.5"),
+    ("glue_tab", "2e6", "[crease].glue_tab", "must be at most 1000000"),
+    ("profile points", f"[[0, 0], [-{HUGE}, 10]]", "[profile].points[1]", "within ±1,000,000 mm, got [-1000"),
+    ("profile points", "[[0, 0], [1e200, 10]]", "[profile].points[1]", "within ±1,000,000 mm, got [1e+200, 10]"),
+    ("trajectory points", "[[0, 0], [0, 1000001]]", "[trajectory].points[1]", "within ±1,000,000 mm"),
+    ("offset", f"[{HUGE}, 0]", "[profile].offset", "within ±1,000,000 mm, got [1000"),
+])
+def test_lengths_beyond_a_kilometre(name, value, key, expected):
+    template, _ = TYPED[name]
+    message = error_of(template.format(value=value))
+    assert message.startswith(f"jobs/x.toml: {key}:") and expected in message
+    assert len(message) < 300  # a 400-digit number is cut short
+    if name in ("radius", "outer_radius", "glue_tab"):  # the limit itself is allowed
+        parse_job(template.format(value="1e6"), "jobs/x.toml")
+
+
 def test_svg_trajectory_only_as_polyline(tmp_path):
     (tmp_path / "t.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg"><path d="M 0 0 L 9 9"/></svg>')
     job = tmp_path / "j.toml"
@@ -253,6 +275,22 @@ def test_invalid_toml():
 
 def test_duplicate_key_is_invalid_toml():
     assert "not valid TOML" in error_of(PROFILE + REGULAR + "radius = 50\n")
+
+
+def test_a_byte_order_mark_is_read_past(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + (PROFILE + REGULAR).encode())
+    assert load_job(path).trajectory.params == {"corners": 6, "radius": 40.0}
+
+
+@pytest.mark.parametrize("table, expected", [
+    ("[fabrication]\nbogus = 1\n", "[fabrication].bogus: unknown key"),
+    ("[fabrication]\nstrategy = 5\n", "[fabrication].strategy: expected a string"),
+    ("[fabrication.perforate]\nvalley = [1]\n", "[fabrication.perforate].valley: expected an even-length list"),
+])
+def test_a_mistake_in_the_fabrication_table_is_the_jobs(table, expected):
+    # Every command that reads the job refuses it, not only the ones that fabricate.
+    assert expected in error_of(PROFILE + REGULAR + table)
 
 
 def test_missing_job_file(tmp_path):
@@ -385,29 +423,31 @@ def toml_value(value) -> str:
 
 text_junk = st.text(st.characters(codec="ascii", exclude_categories=("Cc",)), max_size=8)
 scalar_junk = st.one_of(text_junk, st.booleans(), st.dates(),
-                        st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**6, 10**6))
+                        st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**6, 10**6),
+                        st.sampled_from([10**400, -10**400, 2**63]))  # TOML's reader takes any whole number
 junk = st.one_of(scalar_junk, st.lists(scalar_junk, max_size=3),
                  st.dictionaries(st.sampled_from(["a", "b", "u"]), scalar_junk, max_size=2))
 
 
 def is_valid(name: str, value) -> bool:
     """Whether ``value`` is a valid setting of the TYPED key ``name`` (then it is not junk)."""
-    number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    number = isinstance(value, (int, float)) and not isinstance(value, bool) and abs(value) < math.inf
     integer = isinstance(value, int) and not isinstance(value, bool)
+    length = number and value <= LENGTH_LIMIT
     return {
         "name": isinstance(value, str),
         "template": value in ("regular",),
         "corners": integer and 3 <= value <= 100000,
-        "radius": number and value > 0,
+        "radius": length and value > 0,
         "star points": integer and 2 <= value <= 100000,
-        "outer_radius": number and value > 0 and value != 3,
-        "inner_radius": number and value > 0 and value != 5,
+        "outer_radius": length and value > 0 and value != 3,
+        "inner_radius": length and value > 0 and value != 5,
         "profile points": False,  # no junk value is a list of two or more [u, v] pairs
         "trajectory points": False,
         "offset": isinstance(value, list) and len(value) == 2 and all(
-            isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in value),
+            isinstance(c, (int, float)) and not isinstance(c, bool) and abs(c) <= LENGTH_LIMIT for c in value),
         "flat_angle": number and 0 <= value <= 180,
-        "glue_tab": number and value >= 0,
+        "glue_tab": length and value >= 0,
     }[name]
 
 

@@ -227,3 +227,28 @@ def test_a_shallow_corner_that_breaks_the_design_is_named_with_its_turn():
     with pytest.raises(DesignError, match=r"the mirror at trajectory point 1 \(100, 0\) turns the path by only "
                                           r"0\.0057 degrees.*if that point belongs on a straight line, remove it"):
         reflect(profile, np.array([[0, 0], [100, 0], [200, 0.01], [300, 1]]))
+
+
+@pytest.mark.parametrize("miss", [0.0, 1.8e-15, 1e-10, 2e-7])
+def test_a_path_that_ends_a_hair_from_its_start_is_closed(miss):
+    """Closure is judged to a billionth of the design's size (an SVG path closed with relative
+    moves ends 1e-15 off its start), and the closed design is the one of the exact loop."""
+    profile = np.array([[0.0, 0.0], [3.0, 10.0], [0.0, 20.0]])
+    hexagon = np.array(templates.regular(6, 40), dtype=float)  # closed: its last point is its first
+    exact = reflect(profile, hexagon)
+    near = hexagon.copy()
+    near[-1, 0] += miss
+    got = reflect(profile, near)
+    assert exact.closed
+    if miss > 1e-9 * 80:  # 80 mm across: 2e-7 is a real gap, the path stays open
+        assert not got.closed
+        return
+    assert got.closed and got.corners == exact.corners
+    np.testing.assert_allclose(got.x, exact.x, atol=1e-9)
+    np.testing.assert_allclose(got.points, exact.points, atol=1e-9)
+
+
+def test_a_hundred_thousand_reflections_still_close():
+    """Rounding over 100,000 mirrors (1.2e-9) is no failure to close."""
+    grid = reflect(np.array([[0.0, 0.0], [0.0, 20.0]]), templates.regular(100_000, 40_000))
+    assert grid.closed and grid.corners == 100_000

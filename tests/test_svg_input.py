@@ -528,6 +528,17 @@ def test_closed_path_is_one_piece(tmp_path):
     (f'<svg {NS} width="0mm" height="5mm" viewBox="0 0 10 5"><path d="M 0 0 L 1 1"/></svg>',
      "width '0mm' must be greater than 0"),
     (f'<svg {NS} height="-5mm"><path d="M 0 0 L 1 1"/></svg>', "height '-5mm' must be greater than 0"),
+    (f'<svg {NS} width="e" height="5mm"><path d="M 0 0 L 1 1"/></svg>', "width: unsupported SVG length 'e'"),
+    (f'<svg {NS} width="1e999mm" height="5mm"><path d="M 0 0 L 1 1"/></svg>', "unsupported SVG length '1e999mm'"),
+    (f'<svg {NS} viewBox="0 0 inf 70"><path d="M 0 0 L 1 1"/></svg>', "'0 0 inf 70' is not four finite numbers"),
+    (f'<svg {NS} viewBox="0 0 nan 70"><path d="M 0 0 L 1 1"/></svg>', "'0 0 nan 70' is not four finite numbers"),
+    (f'<svg {NS}><path d="M 0 0 L x y"/></svg>', "cannot read its paths: .*check the d attributes"),
+    (f'<svg {NS}><path d="M 0 70 L nan 35 L 0 0"/></svg>', "cannot read its paths"),
+    (f'<svg {NS}><path d="M 0 70 L 1e400 35 L 0 0"/></svg>', "has a point that is not a finite number"),
+    (f'<svg {NS} width="1000km" height="5mm" viewBox="0 0 1 1"><path d="M 0 0 L 1 1"/></svg>',
+     "unsupported SVG length"),
+    (f'<svg {NS} width="10000000mm" height="5mm" viewBox="0 0 1 1" preserveAspectRatio="none">'
+     '<path d="M 0 0 L 1 1"/></svg>', r"reaches beyond ±1,000,000 mm"),
 ])
 def test_unreadable_files(tmp_path, content, match):
     path = tmp_path / "bad.svg"
@@ -624,11 +635,13 @@ def test_svg_job_errors_name_the_key(tmp_path):
         (dict(svg="p.svg", extra="path = true"), "[profile].path"),
         (dict(svg="p.svg", extra="path = -1"), "[profile].path: a path index must be 0 or more"),
         (dict(svg="p.svg", extra="samples = 1"), "[profile].samples: must be at least 2"),
-        (dict(svg="p.svg", extra="tolerance = 0"), "[profile].tolerance: must be greater than 0"),
+        (dict(svg="p.svg", extra="tolerance = 0"), "[profile].tolerance: must be at least 0.001"),
         (dict(svg="p.svg", extra="tolerance = -0.5"), "[profile].tolerance"),
         (dict(svg="p.svg", extra="samples = 2.5"), "[profile].samples: expected a whole number"),
         (dict(svg="p.svg", extra='tolerance = "fine"'), "[profile].tolerance: expected a number"),
         (dict(svg="p.svg", extra="tolerance = nan"), "[profile].tolerance: expected a finite number"),
+        (dict(svg="p.svg", extra="tolerance = 1e-300"), "[profile].tolerance: must be at least 0.001"),
+        (dict(svg="p.svg", extra="samples = 100000001"), "[profile].samples: must be at most 100000"),
         (dict(svg="p.svg", extra="points = [[0, 0], [1, 1]]"), "[profile]: give either points"),
         (dict(svg="p.svg", extra="colour = 1"), "[profile].colour: unknown key"),
     ]
@@ -655,3 +668,21 @@ def test_svg_design_errors_name_the_job_and_table(tmp_path):
         load_design(job)
     message = str(info.value)
     assert f"{job}: [profile].svg" in message and "p, q" in message
+
+
+def test_a_trajectory_closed_with_relative_moves_is_closed(tmp_path):
+    """Relative moves add up to 1e-15 off the start; the design is the closed one, as with z."""
+    moves = "l 20.1 -20.2 l 40.3 0 l 20.1 20.2 l -20.1 20.2 l -40.3 0 l -20.1 -20.2"
+    designs = []
+    for d in (f"m 10.1 50.3 {moves}", f"M 10.1 50.3 {moves[:moves.rindex('l')]} z"):
+        write_svg(tmp_path, f'<path d="{d}"/>', 'width="100mm" height="100mm" viewBox="0 0 100 100"', name="t.svg")
+        job = write_job(tmp_path, """\
+            [profile]
+            points = [[0, 0], [2, 10], [0, 20]]
+            [trajectory]
+            svg = "t.svg"
+            """)
+        designs.append(load_design(job))
+    relative, with_z = designs
+    assert with_z.grid.closed and relative.grid.closed
+    assert relative.grid.corners == with_z.grid.corners == 6
