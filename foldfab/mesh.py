@@ -16,10 +16,16 @@ from foldfab.crease_pattern import CreasePattern
 
 
 def to_trimesh(cp: CreasePattern, weld: bool = True):
-    """The folded state as a ``trimesh.Trimesh``; ``weld`` joins coincident vertices (the seam)."""
+    """The folded state as a ``trimesh.Trimesh``; ``weld`` joins coincident vertices (the seam).
+
+    The glue tab is left out: folded, it lies flat under the first panel, and the two
+    layers would share edges three ways (a mesh that is no surface to a renderer or a
+    slicer).  The FOLD file keeps it.
+    """
     import trimesh
 
-    tris, _ = cp.triangles()
+    tris, owner = cp.triangles()
+    tris = tris[~cp.tab_faces[owner]] if cp.tab_faces.any() else tris
     mesh = trimesh.Trimesh(vertices=cp.vertices_3d, faces=tris, process=False)
     if weld:
         mesh.merge_vertices()

@@ -200,19 +200,27 @@ def check_oripa(path: Path, data: dict) -> None:
 
 
 def check_mesh(path: Path, design) -> None:
+    """The mesh is the folded sheet without its glue tab (which lies flat under the first
+    panel), and a surface: no edge is shared by more than two triangles."""
     cp = design.crease_pattern
     mesh = trimesh.load(path, force="mesh")
-    triangles, _ = cp.triangles()
-    assert len(mesh.faces) == len(triangles)
+    triangles, owner = cp.triangles()
+    assert len(mesh.faces) == int((~cp.tab_faces[owner]).sum())
     expected = np.array([cp.vertices_3d.min(axis=0), cp.vertices_3d.max(axis=0)])
     np.testing.assert_allclose(mesh.bounds, expected, atol=1e-4)  # float32 in STL, PLY and glTF
-    assert mesh.area == pytest.approx(design_area(cp), rel=1e-5)
+    assert mesh.area == pytest.approx(design_area(cp, without_tab=True), rel=1e-5)
+    mesh.merge_vertices()  # STL stores each triangle's corners on their own
+    _, uses = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+    assert uses.max() <= 2
 
 
-def design_area(cp) -> float:
-    """Area of the sheet without the faces' 2D shoelace sum (faces are CCW, so it is positive)."""
+def design_area(cp, without_tab: bool = False) -> float:
+    """Area of the sheet (or of all but its glue tab) by the faces' 2D shoelace sum (faces are
+    CCW, so it is positive)."""
     total = 0.0
-    for f in cp.face_polygons():
+    for f, tab in zip(cp.face_polygons(), cp.tab_faces if len(cp.tab_faces) else [False] * len(cp.faces)):
+        if tab and without_tab:
+            continue
         p = cp.vertices[f]
         total += 0.5 * np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])
     return total
