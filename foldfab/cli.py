@@ -405,8 +405,8 @@ def cmd_queue_cancel(args: argparse.Namespace) -> int:
 def cmd_queue_retry(args: argparse.Namespace) -> int:
     """Queue a failed, cancelled or interrupted job again."""
     job = _queue_store(args).retry(args.id, restart=args.restart, port=args.port)
-    where = (f"resumes at byte {job.acked_bytes} of {job.program_bytes} (--restart: from the start, new sheet)"
-             if job.acked_bytes else "runs from the start")
+    where = (f"resumes at byte {job.acked_bytes} of {job.program_bytes}, before any other job at {job.port} "
+             "(--restart: from the start, new sheet)" if job.acked_bytes else "runs from the start")
     print(f"job {job.id} queued again: {where}")
     return 0
 
@@ -434,13 +434,15 @@ def cmd_queue_clear(args: argparse.Namespace) -> int:
 
 class QueueConsole:
     """The worker's terminal: job lines, the progress display of ``foldfab plot``, and pauses
-    answered with Enter (without a terminal: ``foldfab queue continue ID``)."""
+    answered with Enter (without a terminal: ``foldfab queue continue ID``); ``rehearsal``: the
+    dry run answers pauses itself, so nothing is asked."""
 
-    def __init__(self):
+    def __init__(self, rehearsal: bool = False):
         from foldfab.progress import reporter
 
         self.report = reporter(sys.stdout)
         self.terminal = sys.stdin.isatty()
+        self.rehearsal = rehearsal
 
     def job_started(self, job, note: str) -> None:
         print(f"job {job.id}: {job.name} on {job.device} at {job.port}: {note}", flush=True)
@@ -449,6 +451,9 @@ class QueueConsole:
         self.report(event)
 
     def paused(self, job, message: str) -> None:
+        if self.rehearsal:
+            print(f"job {job.id} pauses: {message}", flush=True)
+            return
         how = ("press Enter to continue, or type c and Enter to cancel the job" if self.terminal
                else f"when done, run: foldfab queue continue {job.id}")
         print(f"job {job.id} waits: {message}\n{how}", flush=True)
@@ -485,7 +490,7 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
     from foldfab.worker import Worker, WorkerOptions, rehearse
 
     options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
-    store, console = _queue_store(args), QueueConsole()
+    store, console = _queue_store(args), QueueConsole(rehearsal=args.dry_run)
     previous = signal.signal(signal.SIGTERM, _stop_like_ctrl_c)
     try:
         summary = rehearse(store, console, options) if args.dry_run else Worker(store, console, options).run()
@@ -510,14 +515,52 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _int_from(low: int, high: int, what: str):
+    """An argparse type: a whole number from ``low`` to ``high``."""
+    def whole(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{what} from {low} to {high}, got {value}")
+        return value
+    return whole
+
+
+def _seconds_from(low: float, what: str):
+    """An argparse type: a finite number of seconds, ``low`` or more."""
+    def seconds(text: str) -> float:
+        import math
+
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+        if not (math.isfinite(value) and value >= low):
+            raise argparse.ArgumentTypeError(f"{what}, got {text}")
+        return value
+    return seconds
+
+
+def _port(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a serial port or pyserial URL (such as /dev/ttyUSB0 or "
+                                         "sim://grbl), got an empty one")
+    return text
+
+
 def _add_queue_parser(sub) -> None:
     """``foldfab queue ...``: the persistent job queue."""
-    from foldfab.queue import DEFAULT_LEASE, DEFAULT_WAIT, STATES
+    from foldfab.queue import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, DEFAULT_WAIT, LEASE_HEARTBEATS, MAX_COPIES,
+                               MAX_JOB_ID, MIN_LEASE, PRIORITIES, STATES)
 
+    job_id = _int_from(1, MAX_JOB_ID, "expected a job id")
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--queue", metavar="PATH", help="queue file (default: $FOLDFAB_QUEUE, else "
                         "$XDG_DATA_HOME/foldfab/queue.sqlite3, default ~/.local/share)")
-    common.add_argument("--wait", type=float, default=DEFAULT_WAIT, metavar="SECONDS",
+    common.add_argument("--wait", type=_seconds_from(0, "expected 0 seconds or more"), default=DEFAULT_WAIT,
+                        metavar="SECONDS",
                         help=f"how long to wait while another foldfab writes the queue (default {DEFAULT_WAIT:g})")
     queue = sub.add_parser("queue", help="a persistent job queue for one or several plotters",
                            description="Line up sheets and let workers plot them; survives crashes and "
@@ -529,9 +572,12 @@ def _add_queue_parser(sub) -> None:
                                           "is added) and queue a snapshot: later edits of the files change nothing.")
     add.add_argument("jobs", nargs="+", metavar="JOB.toml", help="job files")
     add.add_argument("--device", required=True, metavar="NAME", help="device profile (name or .toml path)")
-    add.add_argument("--port", metavar="PORT", help="serial port or pyserial URL (default: the profile's port)")
-    add.add_argument("--copies", type=_positive_int, default=1, metavar="N", help="sheets of each job (default 1)")
-    add.add_argument("--priority", type=int, default=0, metavar="P", help="higher runs first (default 0)")
+    add.add_argument("--port", type=_port, metavar="PORT",
+                     help="serial port or pyserial URL (default: the profile's port)")
+    add.add_argument("--copies", type=_int_from(1, MAX_COPIES, "expected copies"), default=1, metavar="N",
+                     help=f"sheets of each job, up to {MAX_COPIES} (default 1)")
+    add.add_argument("--priority", type=_int_from(*PRIORITIES, "expected a priority"), default=0, metavar="P",
+                     help=f"higher runs first, {PRIORITIES[0]} to {PRIORITIES[1]} (default 0)")
     add.add_argument("--allow-penetration", action="store_true", help="queue a design whose faces intersect")
     add.set_defaults(func=cmd_queue_add)
 
@@ -541,7 +587,7 @@ def _add_queue_parser(sub) -> None:
     listing.set_defaults(func=cmd_queue_list)
 
     show = commands.add_parser("show", parents=[common], help="one job and its event log")
-    show.add_argument("id", type=int, metavar="ID")
+    show.add_argument("id", type=job_id, metavar="ID")
     show.add_argument("--json", action="store_true", help="print JSON")
     show.set_defaults(func=cmd_queue_show)
 
@@ -550,13 +596,13 @@ def _add_queue_parser(sub) -> None:
                              ("continue", cmd_queue_continue, "go on after a pause (the sheet is flipped)"),
                              ("remove", cmd_queue_remove, "delete a job that is not running")):
         action = commands.add_parser(name, parents=[common], help=text)
-        action.add_argument("id", type=int, metavar="ID")
+        action.add_argument("id", type=job_id, metavar="ID")
         action.set_defaults(func=func)
         if name == "retry":
             action.add_argument("--restart", action="store_true",
                                 help="from the start on a new sheet, not from the last acknowledged stroke")
-            action.add_argument("--port", metavar="PORT", help="on this port from now on (the plotter's new "
-                                "device path, or another plotter of the same model)")
+            action.add_argument("--port", type=_port, metavar="PORT", help="on this port from now on (the "
+                                "plotter's new device path, or another plotter of the same model)")
 
     clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
     clear.add_argument("--done", action="store_true", required=True, help="delete every done job")
@@ -568,7 +614,7 @@ def _add_queue_parser(sub) -> None:
                                           "several on one queue: they never run the same job).  A job whose "
                                           "worker died is resumed from its last acknowledged stroke.")
     run.add_argument("--device", metavar="NAME", help="only jobs for this device profile")
-    run.add_argument("--port", metavar="PORT", help="only jobs for this port")
+    run.add_argument("--port", type=_port, metavar="PORT", help="only jobs for this port")
     modes = run.add_mutually_exclusive_group()
     modes.add_argument("--until-empty", dest="mode", action="store_const", const="until-empty",
                        help="stop when no job is runnable (the default)")
@@ -578,8 +624,11 @@ def _add_queue_parser(sub) -> None:
     run.set_defaults(mode="until-empty")
     run.add_argument("--dry-run", action="store_true",
                      help="stream every runnable job to a simulated plotter of its device; the queue is not changed")
-    run.add_argument("--lease", type=float, default=DEFAULT_LEASE, metavar="SECONDS",
-                     help=f"a job whose worker is silent this long is interrupted (default {DEFAULT_LEASE:g})")
+    lease = _seconds_from(MIN_LEASE, f"expected at least {MIN_LEASE:g} seconds ({LEASE_HEARTBEATS} of the "
+                                     f"worker's heartbeats, one every {DEFAULT_HEARTBEAT:g} s)")
+    run.add_argument("--lease", type=lease, default=DEFAULT_LEASE, metavar="SECONDS",
+                     help=f"a job whose worker is silent this long is interrupted (default {DEFAULT_LEASE:g}, "
+                          f"at least {MIN_LEASE:g})")
     run.set_defaults(func=cmd_queue_run)
 
 

@@ -15,7 +15,8 @@ States and transitions (every change is one ``BEGIN IMMEDIATE`` transaction)::
     interrupted ──claim──> running      (resumes from the last acknowledged byte)
     queued, interrupted ──cancel──> cancelled
     running, waiting ──cancel──> (cancel requested; the worker stops the plotter) cancelled
-    failed, cancelled, interrupted ──retry──> queued
+    failed, cancelled, interrupted ──retry──> queued   (a resume unless --restart or nothing
+                                                       was acknowledged)
 
 A worker holds a **lease** on its job and renews it (the heartbeat); a job whose
 lease expired, or whose worker process on this machine is gone, becomes
@@ -23,7 +24,8 @@ interrupted at the next write to the queue.  Leases compare wall clocks, so host
 that share a queue need synchronized clocks (NTP).  Claims are atomic: a job runs on one
 worker, and a plotter (its port) runs one job at a time.  A plotter with an
 interrupted job (a half-drawn sheet on it) runs nothing else until that job is
-resumed, cancelled or removed.
+resumed, cancelled or removed; so does one with a job queued again to resume (``retry``
+without ``restart`` of a job partly acknowledged), and such resumes are claimed first.
 
 Storage is behind :class:`QueueStore`; :class:`SqliteQueueStore` keeps it in an
 SQLite file in WAL mode (local disks only: WAL needs shared memory, so not NFS).
@@ -57,6 +59,17 @@ ACTIVE = ("running", "waiting")
 RUNNABLE = ("queued", "interrupted")
 FINISHED = ("done", "failed", "cancelled")
 DEFAULT_LEASE = 30.0
+DEFAULT_HEARTBEAT = 1.0
+"""Longest time between a worker's heartbeats (seconds)."""
+LEASE_HEARTBEATS = 5
+"""A lease lasts at least this many heartbeat intervals: one late heartbeat (a busy queue file,
+a slow disk) must not lose the job."""
+MIN_LEASE = LEASE_HEARTBEATS * DEFAULT_HEARTBEAT
+MAX_JOB_ID = 2 ** 63 - 1
+"""SQLite's largest integer."""
+PRIORITIES = (-1000, 1000)
+"""Lowest and highest priority (as the studio allows)."""
+MAX_COPIES = 1000
 DEFAULT_WAIT = 10.0
 
 
@@ -171,7 +184,17 @@ class Claim:
     """A job a worker now holds: the record (state ``running``) and its snapshot."""
 
     job: JobRecord
-    snapshot: Snapshot
+    stored: Snapshot | None
+    """The snapshot; None when it is damaged."""
+    damage: str | None = None
+    """Why the snapshot cannot be used (its program no longer matches its SHA-256)."""
+
+    @property
+    def snapshot(self) -> Snapshot:
+        """The snapshot; FoldfabError (saying why) if it is damaged: the worker fails the job."""
+        if self.stored is None:
+            raise FoldfabError(self.damage or f"job {self.job.id}: no snapshot")
+        return self.stored
 
 
 @dataclass(frozen=True)
@@ -268,7 +291,9 @@ class QueueStore(Protocol):
 
     def claim(self, worker: WorkerId, lease: float, device: str | None = None, port: str | None = None,
               exclude: Sequence[int] = ()) -> Claim | None:
-        """Atomically take the next runnable job (for ``device``/``port`` if given, not in ``exclude``)."""
+        """Atomically take the next runnable job (for ``device``/``port`` if given, not in ``exclude``).
+        A job whose snapshot is damaged is claimed too: its :attr:`Claim.snapshot` raises, and the
+        worker fails the job and reports it."""
 
     def runnable(self, device: str | None = None, port: str | None = None,
                  exclude: Sequence[int] = ()) -> list[JobRecord]:
@@ -370,16 +395,19 @@ _EFFECTIVE_REASON = (f"CASE WHEN j.state IN ('running', 'waiting') AND {_DEAD} T
                      "'worker ' || j.worker || ' is gone or stopped renewing its lease' ELSE j.reason END")
 _SELECT_JOBS = (f"SELECT {_JOB_COLUMNS.format(state=_EFFECTIVE_STATE, reason=_EFFECTIVE_REASON)} "
                 "FROM jobs j JOIN snapshots s ON s.id = j.snapshot_id")
+# A resume: a job whose sheet is half drawn on its plotter, interrupted, or queued again by
+# retry without --restart after part of it was acknowledged.
+_RESUME = "({t}.state = 'interrupted' OR ({t}.state = 'queued' AND {t}.acked_bytes > 0))"
 # The next job for a worker: resumes first (a half-drawn sheet is on that plotter), then
-# priority, then arrival; never a plotter that is busy or holds an interrupted job.
-_CLAIM_ORDER = "ORDER BY j.state = 'interrupted' DESC, j.priority DESC, j.id"
+# priority, then arrival; never a plotter that is busy or holds a resume (another job's).
+_CLAIM_ORDER = f"ORDER BY {_RESUME.format(t='j')} DESC, j.priority DESC, j.id"
 _RUNNABLE = f"""{_SELECT_JOBS}
     WHERE j.state IN ('queued', 'interrupted')
       AND (:device IS NULL OR s.device = :device) AND (:port IS NULL OR j.port = :port)
       AND j.id NOT IN (SELECT value FROM json_each(:exclude))
       AND NOT EXISTS (SELECT 1 FROM jobs o WHERE o.port = j.port AND o.id <> j.id
                       AND (o.state IN ('running', 'waiting')
-                           OR (o.state = 'interrupted' AND j.state <> 'interrupted')))
+                           OR ({_RESUME.format(t='o')} AND NOT {_RESUME.format(t='j')})))
     {_CLAIM_ORDER}"""
 
 
@@ -414,6 +442,8 @@ class SqliteQueueStore:
 
     def _connect(self) -> sqlite3.Connection:
         if self._db is None:
+            if self.path.is_dir():
+                raise FoldfabError(self._folder_message())
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
             except OSError as exc:
@@ -470,6 +500,15 @@ class SqliteQueueStore:
                 message = (f"{where}: its folder is not writable, and SQLite needs to create "
                            f"{self.path.name}-wal and {self.path.name}-shm beside it; nothing was changed; "
                            "make the folder writable, or choose another queue with --queue")
+            elif name.startswith("SQLITE_CANTOPEN") and self.path.is_dir():
+                message = self._folder_message()
+            elif (name.startswith("SQLITE_CANTOPEN") and not self.path.exists()
+                  and not os.access(self.path.parent, os.W_OK)):
+                message = (f"{where} cannot be created: its folder {self.path.parent} is not writable for you; "
+                           "nothing was changed; make the folder writable, or choose another queue with --queue")
+            elif name.startswith("SQLITE_CANTOPEN") and self.path.exists() and not os.access(self.path, os.R_OK):
+                message = (f"{where} is not readable for you ({exc}); nothing was changed; ask its owner for "
+                           "read and write access, or choose another queue with --queue")
             elif name.startswith(("SQLITE_READONLY", "SQLITE_CANTOPEN", "SQLITE_PERM")):
                 message = (f"{where} is read-only for you ({exc}); nothing was changed; ask its owner for "
                            "write access, or choose another queue with --queue")
@@ -480,6 +519,10 @@ class SqliteQueueStore:
             else:
                 message = f"{where}: {exc}; nothing was changed"
             raise FoldfabError(message) from None
+
+    def _folder_message(self) -> str:
+        return (f"queue file {self.path} is a folder: give the path of a file in it (such as "
+                f"{self.path / 'queue.sqlite3'}) with --queue or FOLDFAB_QUEUE")
 
     def _must_exist(self) -> None:
         """Only adding creates the queue file; other commands on a missing one say so."""
@@ -554,10 +597,13 @@ class SqliteQueueStore:
                    (job_id, time.time(), kind, message))
 
     def _get(self, db: sqlite3.Connection, job_id: int) -> JobRecord:
-        row = db.execute(f"{_SELECT_JOBS} WHERE j.id = :id", self._params(id=job_id)).fetchone()
+        row = db.execute(f"{_SELECT_JOBS} WHERE j.id = :id", self._params(id=_job_id(job_id))).fetchone()
         if row is None:
-            raise FoldfabError(f"no job {job_id} in queue {self.path}; see foldfab queue list")
+            raise self._no_job(job_id)
         return _record(row)
+
+    def _no_job(self, job_id: int) -> FoldfabError:
+        return FoldfabError(f"no job {job_id} in queue {self.path}; see foldfab queue list")
 
     @staticmethod
     def _owned(db: sqlite3.Connection, job_id: int, worker: WorkerId) -> tuple[str, bool] | None:
@@ -568,6 +614,12 @@ class SqliteQueueStore:
     # -- operator side
 
     def add(self, jobs: Sequence[NewJob]) -> list[int]:
+        for new in jobs:
+            if not new.port.strip():
+                raise FoldfabError(f"{new.snapshot.name}: empty port: give a serial port or pyserial URL")
+            if not (PRIORITIES[0] <= new.priority <= PRIORITIES[1] and 1 <= new.copies <= MAX_COPIES):
+                raise ValueError(f"priority must be from {PRIORITIES[0]} to {PRIORITIES[1]} and copies from 1 "
+                                 f"to {MAX_COPIES}, got {new.priority} and {new.copies}")
         ids = []
         with self._write(create=True) as db:
             now = time.time()
@@ -605,16 +657,16 @@ class SqliteQueueStore:
     def events(self, job_id: int) -> list[Event]:
         with self._read() as db:
             rows = db.execute("SELECT time, kind, message FROM events WHERE job_id = ? ORDER BY id",
-                              (job_id,)).fetchall()
+                              (_job_id(job_id),)).fetchall()
         return [Event(*row) for row in rows]
 
     def snapshot(self, job_id: int) -> Snapshot:
         with self._read() as db:
             row = db.execute("SELECT s.name, s.job_path, s.job_text, s.device, s.device_text, s.program, "
                              "s.program_meta, s.program_sha256 FROM jobs j JOIN snapshots s "
-                             "ON s.id = j.snapshot_id WHERE j.id = ?", (job_id,)).fetchone()
+                             "ON s.id = j.snapshot_id WHERE j.id = ?", (_job_id(job_id),)).fetchone()
         if row is None:
-            raise FoldfabError(f"no job {job_id} in queue {self.path}; see foldfab queue list")
+            raise self._no_job(job_id)
         *texts, program, meta, digest = row
         snap = Snapshot(*texts, _program_from(program, meta))
         if snap.sha256 != digest:
@@ -643,6 +695,8 @@ class SqliteQueueStore:
             if job.state not in ("failed", "cancelled", "interrupted"):
                 raise FoldfabError(f"job {job_id} is {job.state}; only failed, cancelled or interrupted jobs "
                                    "can be retried")
+            if port is not None and not port.strip():
+                raise FoldfabError(f"job {job_id}: empty port: give a serial port or pyserial URL with --port")
             where = "from the start, on a new sheet" if restart or not job.acked_bytes else \
                 f"from byte {job.acked_bytes} of {job.program_bytes} (the last acknowledged stroke)"
             values = {"acked_bytes": 0, "pauses_done": 0, "progress": "", "drawn_mm": 0} if restart else {}
@@ -703,22 +757,21 @@ class SqliteQueueStore:
         if not self.path.exists():
             return None
         params = self._params(device=device, port=port, exclude=json.dumps(list(exclude)))
-        while True:
-            with self._write() as db:
-                row = db.execute(f"{_RUNNABLE} LIMIT 1", params | {"now": time.time()}).fetchone()
-                if row is None:
-                    return None
-                job = _record(row)
-                self._set(db, job.id, state="running", worker=str(worker), worker_host=worker.host,
-                          worker_pid=worker.pid, lease_expires=time.time() + lease, attempts=job.attempts + 1,
-                          cancel_requested=0, reason=None)
-                what = f"resumed at byte {job.acked_bytes} of {job.program_bytes}" if job.acked_bytes else "started"
-                self._event(db, job.id, "started", f"{what} by worker {worker} (attempt {job.attempts + 1})")
-                job = self._get(db, job.id)
-            try:
-                return Claim(job, self.snapshot(job.id))
-            except FoldfabError as exc:  # a damaged snapshot fails its job, not the worker
-                self.finish(job.id, worker, "failed", str(exc))
+        with self._write() as db:
+            row = db.execute(f"{_RUNNABLE} LIMIT 1", params | {"now": time.time()}).fetchone()
+            if row is None:
+                return None
+            job = _record(row)
+            self._set(db, job.id, state="running", worker=str(worker), worker_host=worker.host,
+                      worker_pid=worker.pid, lease_expires=time.time() + lease, attempts=job.attempts + 1,
+                      cancel_requested=0, reason=None)
+            what = f"resumed at byte {job.acked_bytes} of {job.program_bytes}" if job.acked_bytes else "started"
+            self._event(db, job.id, "started", f"{what} by worker {worker} (attempt {job.attempts + 1})")
+            job = self._get(db, job.id)
+        try:
+            return Claim(job, self.snapshot(job.id))
+        except FoldfabError as exc:  # damaged: the worker fails the job (and says so), not itself
+            return Claim(job, None, str(exc))
 
     def heartbeat(self, job_id: int, worker: WorkerId, lease: float, acked_bytes: int | None = None,
                   progress: str | None = None, pauses_done: int | None = None,
@@ -758,6 +811,11 @@ class SqliteQueueStore:
                       **values)
             self._event(db, job_id, state, message)
             return True
+
+
+def _job_id(job_id: int) -> int:
+    """``job_id`` as SQLite takes it: ids beyond its integers (no such job) as -1."""
+    return job_id if -MAX_JOB_ID <= job_id <= MAX_JOB_ID else -1
 
 
 def _given(drawn: tuple[float, float] | None = None, **values) -> dict:

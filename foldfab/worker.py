@@ -21,10 +21,12 @@ How a job ends: the engine finished -> ``done``; the queue's cancel (or the oper
 the worker's terminal) -> ``cancelled``; the port could not be opened, the link or the
 plotter was lost (the tool could not be lifted) or Ctrl-C on the worker ->
 ``interrupted``; the plotter reported an error or stalled (the tool was lifted), or the
-job cannot start (its stored device profile no longer loads) -> ``failed``.
-A worker does not resume a job it saw interrupted itself until ``retry_after`` seconds
-have passed (``--follow``), or not at all in this run (``--until-empty``, ``--once``):
-someone has to plug the cable back in.
+job cannot start (its stored program no longer matches its SHA-256, or its stored device
+profile no longer loads) -> ``failed``.
+A worker does not resume a job it saw interrupted itself, or lost (its lease expired), until
+``retry_after`` seconds have passed (``--follow``), or not at all in this run
+(``--until-empty``, ``--once``): someone has to plug the cable back in, or the worker was too
+slow to renew its lease and would lose the job again.
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ from functools import partial
 from typing import TYPE_CHECKING, Callable, Protocol
 
 from foldfab.errors import FoldfabError
-from foldfab.queue import DEFAULT_LEASE, Claim, JobRecord, QueueStore, WorkerId, load_snapshot_device
+from foldfab.queue import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, QueueStore,
+                           WorkerId, load_snapshot_device)
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -128,8 +131,8 @@ class WorkerOptions:
     mode: str = "until-empty"
     """until-empty: stop when nothing is runnable; once: one job at most; follow: wait for jobs."""
     lease: float = DEFAULT_LEASE
-    """Seconds a job stays this worker's without a heartbeat."""
-    heartbeat: float = 1.0
+    """Seconds a job stays this worker's without a heartbeat; at least ``LEASE_HEARTBEATS`` heartbeats."""
+    heartbeat: float = DEFAULT_HEARTBEAT
     """Longest time between two heartbeats (progress is also saved when a stroke is done)."""
     poll: float = 2.0
     """follow: seconds between looks at an empty queue; also how often a pause checks the queue."""
@@ -264,10 +267,13 @@ class Worker:
         (:func:`foldfab.resume.locate_resume`)."""
         if options.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
+        if not options.heartbeat > 0 or not options.lease >= LEASE_HEARTBEATS * options.heartbeat:
+            raise ValueError(f"the lease ({options.lease:g} s) must last at least {LEASE_HEARTBEATS} heartbeats "
+                             f"({LEASE_HEARTBEATS * options.heartbeat:g} s), else the worker loses its jobs")
         self.store, self.ui, self.options, self.runner = store, ui, options, runner
         self.locate = locate
         self.id = WorkerId.current()
-        self.interrupted: dict[int, float] = {}  # jobs this worker saw interrupted, and when
+        self.interrupted: dict[int, float] = {}  # jobs this worker saw interrupted or lost, and when
         self.stopping = threading.Event()
 
     def stop(self) -> None:
@@ -287,7 +293,7 @@ class Worker:
                 continue
             state = self.run_job(claim)
             summary.add(claim.job.id, state)
-            if state == "interrupted":
+            if state in ("interrupted", "lost"):  # not again at once: the same would happen
                 self.interrupted[claim.job.id] = time.monotonic()
             if self.options.mode == "once":
                 return summary
@@ -378,14 +384,21 @@ def stopped_state(stop: StreamStopped) -> str:
 def rehearse(store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOptions(),
              runner: Runner = stream_runner) -> WorkerSummary:
     """``--dry-run``: every runnable job, in claim order, streamed to a simulated plotter of its
-    device (resumed where a run would resume it; pauses answered at once).  The queue is not changed."""
+    device (resumed where a run would resume it; pauses answered at once).  A job that a run
+    could not start (a damaged snapshot) or that the simulated plotter stops is reported and the
+    next one rehearsed.  The queue is not changed."""
     from foldfab.stream import StreamStopped
 
     summary = WorkerSummary()
     for job in store.runnable(options.device, options.port):
-        snapshot = store.snapshot(job.id)
-        device = load_snapshot_device(snapshot)
-        start = start_point(snapshot.program, device, job.acked_bytes, job.pauses_done)
+        try:
+            snapshot = store.snapshot(job.id)
+            device = load_snapshot_device(snapshot)
+            start = start_point(snapshot.program, device, job.acked_bytes, job.pauses_done)
+        except FoldfabError as exc:
+            ui.job_ended(job, "failed", f"cannot start: {exc}")
+            summary.add(job.id, "failed")
+            continue
         ui.job_started(job, f"dry run on {DRY_RUN_PORT} instead of {job.port}: {start.note}")
         state, message = "done", "the simulated plotter finished it"
         if start.program is not None:
@@ -394,6 +407,8 @@ def rehearse(store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOpt
                        operator=lambda text: ui.paused(job, f"{text} (answered by the dry run)") or True)
             except StreamStopped as exc:
                 state, message = stopped_state(exc), str(exc)
+            except FoldfabError as exc:  # the simulated plotter could not be opened
+                state, message = "failed", str(exc)
         ui.job_ended(job, state, message)
         summary.add(job.id, state)
     return summary

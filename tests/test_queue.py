@@ -96,6 +96,37 @@ def test_interrupted_job_goes_first_and_blocks_its_plotter(store):
     assert "resumed at byte 7" in store.events(1)[-1].message
 
 
+@pytest.mark.parametrize("end", ["interrupted", "failed", "cancelled"])
+def test_a_job_retried_to_resume_keeps_its_plotter_and_goes_first(store, end):
+    """retry without --restart of a job partly drawn: its sheet is on the plotter, so nothing
+    else runs there first, whatever its priority."""
+    fill(store, ["sim://a"], 1)
+    worker = WorkerId.current()
+    claim = store.claim(worker, 30)
+    store.heartbeat(claim.job.id, worker, 30, acked_bytes=7)
+    store.finish(claim.job.id, worker, end, "stopped")
+    store.add([NewJob(snapshot(), "sim://a", 5), NewJob(snapshot(), "sim://b", 9)])
+    job = store.retry(1)
+    assert (job.state, job.acked_bytes) == ("queued", 7)
+    assert [j.id for j in store.runnable()] == [1, 3]  # job 2 waits: the half-drawn sheet is on sim://a
+    assert store.runnable(exclude=[1]) == [store.job(3)]  # also while a worker holds job 1 back
+    assert store.claim(worker, 30, port="sim://a").job.id == 1
+    assert store.claim(worker, 30, port="sim://a") is None
+    store.finish(1, worker, "done", "finished")
+    assert store.claim(worker, 30, port="sim://a").job.id == 2
+
+
+def test_a_job_retried_from_the_start_does_not_hold_its_plotter(store):
+    fill(store, ["sim://a"], 1)
+    worker = WorkerId.current()
+    claim = store.claim(worker, 30)
+    store.heartbeat(claim.job.id, worker, 30, acked_bytes=7)
+    store.finish(claim.job.id, worker, "interrupted", "serial port vanished")
+    store.add([NewJob(snapshot(), "sim://a", 5)])
+    assert store.retry(1, restart=True).acked_bytes == 0  # a new sheet: priority decides
+    assert [j.id for j in store.runnable()] == [2, 1]
+
+
 def test_cancel_queued_running_and_waiting(store):
     fill(store, ["sim://a", "sim://b"], 2)
     assert store.cancel(2).state == "cancelled"
@@ -399,14 +430,17 @@ def test_damaged_pages_inside_a_queue_are_reported(store):
         SqliteQueueStore(store.path).jobs()
 
 
-def test_tampered_program_fails_its_job_not_the_worker(store):
+def test_tampered_program_is_claimed_for_the_worker_to_fail(store):
     fill(store, ["sim://a", "sim://b"], 1)
     with sqlite3.connect(store.path) as db:
         db.execute("UPDATE snapshots SET program = 'IN;PD0,0;' WHERE id = 1")
-    claim = store.claim(WorkerId.current(), 30)
-    assert claim.job.id == 2
-    job = store.job(1)
-    assert job.state == "failed" and "does not match its SHA-256" in job.reason
+    worker = WorkerId.current()
+    claim = store.claim(worker, 30)
+    assert claim.job.id == 1 and claim.stored is None and "does not match its SHA-256" in claim.damage
+    with pytest.raises(FoldfabError, match="job 1: its stored program does not match its SHA-256"):
+        claim.snapshot  # noqa: B018 (the worker fails the job with this reason, and says so)
+    assert store.finish(1, worker, "failed", claim.damage)
+    assert store.claim(worker, 30).snapshot.program.text == snapshot().program.text
 
 
 # --- the command line ---------------------------------------------------------------------------
@@ -432,6 +466,98 @@ def test_cli_add_list_show_and_actions(tmp_path, capsys):
     assert run_cli(capsys, "queue", "remove", "1", *queue)[1] == "job 1 removed\n"
     assert run_cli(capsys, "queue", "clear", "--done", *queue)[1] == "removed 0 done jobs\n"
     assert json.loads(run_cli(capsys, "queue", "show", "2", "--json", *queue)[1])["job"]["id"] == 2
+
+
+@pytest.mark.parametrize("args, message", [
+    (["show", "99999999999999999999"], "argument ID: expected a job id from 1 to 9223372036854775807, "
+                                       "got 99999999999999999999"),
+    (["cancel", "9223372036854775808"], "argument ID: expected a job id from 1 to 9223372036854775807"),
+    (["retry", "-3"], "argument ID: expected a job id from 1 to"),
+    (["remove", "0"], "argument ID: expected a job id from 1 to"),
+    (["continue", "1.5"], "argument ID: expected a whole number, got '1.5'"),
+    (["add", str(HEXAGON), "--device", "grbl", "--port", "sim://x", "--priority", "99999999999999999999"],
+     "argument --priority: expected a priority from -1000 to 1000, got 99999999999999999999"),
+    (["add", str(HEXAGON), "--device", "grbl", "--port", "sim://x", "--copies", "99999999999999999999"],
+     "argument --copies: expected copies from 1 to 1000"),
+    (["add", str(HEXAGON), "--device", "grbl", "--port", ""], "argument --port: expected a serial port or "
+                                                              "pyserial URL (such as /dev/ttyUSB0 or sim://grbl), "
+                                                              "got an empty one"),
+    (["add", str(HEXAGON), "--device", "grbl", "--port", " "], "argument --port: expected a serial port"),
+    (["retry", "1", "--port", ""], "argument --port: expected a serial port"),
+    (["run", "--port", ""], "argument --port: expected a serial port"),
+    (["run", "--lease", "0.5"], "argument --lease: expected at least 5 seconds (5 of the worker's heartbeats, "
+                                "one every 1 s), got 0.5"),
+    (["run", "--lease", "0"], "argument --lease: expected at least 5 seconds"),
+    (["run", "--lease", "-30"], "argument --lease: expected at least 5 seconds"),
+    (["run", "--lease", "nan"], "argument --lease: expected at least 5 seconds"),
+    (["run", "--lease", "inf"], "argument --lease: expected at least 5 seconds"),
+    (["list", "--wait", "nan"], "argument --wait: expected 0 seconds or more, got nan"),
+    (["list", "--wait", "-1"], "argument --wait: expected 0 seconds or more, got -1"),
+])
+def test_out_of_range_arguments_are_refused_before_the_queue_is_touched(tmp_path, capsys, args, message):
+    queue = tmp_path / "q.sqlite3"
+    with pytest.raises(SystemExit) as stop:
+        main(["queue", *args, "--queue", str(queue)])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and "Traceback" not in err
+    last = err.splitlines()[-1]
+    assert last.startswith(f"foldfab queue {args[0]}: error: {message}")
+    assert not queue.exists()
+
+
+def test_huge_ids_are_no_job_for_the_store(store):
+    fill(store, ["sim://a"], 1)
+    for call in (store.job, store.snapshot, store.cancel, store.retry, store.continue_job, store.remove):
+        with pytest.raises(FoldfabError, match="no job 99999999999999999999 in queue"):
+            call(99999999999999999999, *(["test"] if call == store.continue_job else []))
+    assert store.events(99999999999999999999) == []
+
+
+def test_an_empty_port_is_refused_by_the_store(store):
+    with pytest.raises(FoldfabError, match="empty port"):
+        store.add([NewJob(snapshot(), "")])
+    fill(store, ["sim://a"], 1)
+    store.cancel(1)
+    with pytest.raises(FoldfabError, match="job 1: empty port"):
+        store.retry(1, port="")
+    assert store.job(1).port == "sim://a"
+
+
+def test_a_folder_given_as_the_queue_file_is_named_a_folder(tmp_path, capsys):
+    for args in (["list"], ["show", "1"], ["run"], ["clear", "--done"],
+                 ["add", str(HEXAGON), "--device", "grbl", "--port", "sim://x"]):
+        code, _, err = run_cli(capsys, "queue", *args, "--queue", str(tmp_path))
+        assert code == 2, args
+        assert err == (f"foldfab: error: queue file {tmp_path} is a folder: give the path of a file in it (such "
+                       f"as {tmp_path / 'queue.sqlite3'}) with --queue or FOLDFAB_QUEUE\n")
+    assert list(tmp_path.iterdir()) == []
+
+
+def _unwritable_folder_checks(path: Path, new: NewJob) -> None:
+    store = SqliteQueueStore(path, wait=0.5)
+    try:
+        store.add([new])
+    except FoldfabError as exc:
+        assert str(exc) == (f"queue file {path} cannot be created: its folder {path.parent} is not writable for "
+                            "you; nothing was changed; make the folder writable, or choose another queue with "
+                            "--queue"), str(exc)
+    else:
+        raise AssertionError("a queue was created in a folder that is not writable")
+
+
+def test_a_queue_that_cannot_be_created_blames_its_folder():
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="foldfab-queue-test-"))
+    try:
+        os.chmod(folder, 0o555)  # anyone may look in, nobody but root may write
+        new = NewJob(snapshot(), "sim://a")
+        assert new.snapshot.sha256  # its imports done here: the unprivileged child may not read the modules
+        _as_nobody(_unwritable_folder_checks, folder / "queue.sqlite3", new)
+        assert list(folder.iterdir()) == []
+    finally:
+        os.chmod(folder, 0o755)
+        shutil.rmtree(folder)
 
 
 def test_default_queue_location(tmp_path, monkeypatch, capsys):
@@ -525,6 +651,7 @@ class QueueMachine(RuleBasedStateMachine):
         self.states: dict[int, str] = {}
         self.held: dict[int, WorkerId] = {}
         self.ports: dict[int, str] = {}
+        self.acked: dict[int, int] = {}
         self.snap = snapshot()
 
     def teardown(self):
@@ -534,19 +661,32 @@ class QueueMachine(RuleBasedStateMachine):
     @rule(port=st.sampled_from(PORTS), copies=st.integers(1, 2), priority=st.integers(0, 2))
     def add(self, port, copies, priority):
         for job_id in self.store.add([NewJob(self.snap, port, priority, copies)]):
-            self.states[job_id], self.ports[job_id] = "queued", port
+            self.states[job_id], self.ports[job_id], self.acked[job_id] = "queued", port, 0
+
+    def _resume(self, job_id: int) -> bool:
+        """A half-drawn sheet is on the job's plotter, to be resumed."""
+        state = self.states[job_id]
+        return state == "interrupted" or (state == "queued" and self.acked[job_id] > 0)
 
     @rule(worker=st.integers(0, 2))
     def claim(self, worker):
         busy = {self.ports[j] for j, s in self.states.items() if s in ("running", "waiting")}
-        blocked = {self.ports[j] for j, s in self.states.items() if s == "interrupted"}
+        blocked = {self.ports[j] for j in self.states if self._resume(j)}
         runnable = [j for j, s in self.states.items() if s in ("queued", "interrupted")
-                    and self.ports[j] not in busy and (s == "interrupted" or self.ports[j] not in blocked)]
+                    and self.ports[j] not in busy and (self._resume(j) or self.ports[j] not in blocked)]
         claim = self.store.claim(self.workers[worker], 3600)
         assert (claim is None) == (not runnable)
         if claim is not None:
             assert claim.job.id in runnable
+            assert self._resume(claim.job.id) or not any(self._resume(j) for j in runnable)  # resumes first
             self.states[claim.job.id], self.held[claim.job.id] = "running", self.workers[worker]
+
+    @precondition(lambda self: self.held)
+    @rule(data=st.data())
+    def progress(self, data):
+        job_id = data.draw(st.sampled_from(self._held()))
+        self.acked[job_id] += 1
+        assert not self.store.heartbeat(job_id, self.held[job_id], 3600, acked_bytes=self.acked[job_id]).lost
 
     def _held(self):
         return sorted(self.held)
@@ -606,17 +746,20 @@ class QueueMachine(RuleBasedStateMachine):
         if state in ("failed", "cancelled", "interrupted"):
             assert self.store.retry(job_id, restart).state == "queued"
             self.states[job_id] = "queued"
+            if restart:
+                self.acked[job_id] = 0
         elif state in ("running", "waiting"):
             with pytest.raises(FoldfabError, match="cancel it first"):
                 self.store.remove(job_id)
         else:
             self.store.remove(job_id)
-            del self.states[job_id]
+            del self.states[job_id], self.acked[job_id]
 
     @invariant()
     def states_match_and_plotters_run_one_job(self):
         jobs = self.store.jobs()
         assert {j.id: j.state for j in jobs} == self.states
+        assert {j.id: j.acked_bytes for j in jobs} == self.acked
         for port in self.PORTS:
             assert len([j for j in jobs if j.port == port and j.state in ("running", "waiting")]) <= 1
 

@@ -331,6 +331,75 @@ def test_worker_that_loses_its_job_stops_the_plotter(store, snapshots):
     assert store.job(1).worker == "elsewhere/1/x"
 
 
+def test_worker_does_not_take_back_a_job_it_lost_in_the_same_run(store, snapshots):
+    import sqlite3
+
+    store.add([NewJob(snapshots[("grbl", "force")], "sim://a")])
+    plotter = FakePlotter(delay=0.05)
+    console = Console()
+    summary = {}
+    thread = threading.Thread(target=lambda: summary.update(
+        Worker(store, console, WorkerOptions(heartbeat=0.05), runner=plotter).run().ended), daemon=True)
+    thread.start()
+    wait_for(lambda: store.job(1).acked_bytes > 0)
+    with sqlite3.connect(store.path) as db:  # the lease ran out (the worker was too slow to renew it)
+        db.execute("UPDATE jobs SET lease_expires = 0 WHERE id = 1")
+    thread.join(20)
+    assert not thread.is_alive() and summary == {"lost": [1]}  # not claimed again, to be lost again
+    job = store.job(1)
+    assert (job.state, job.attempts) == ("interrupted", 1) and "lease expired" in job.reason
+
+
+def test_a_lease_shorter_than_a_few_heartbeats_is_refused(store):
+    with pytest.raises(ValueError, match=r"the lease \(0.5 s\) must last at least 5 heartbeats \(5 s\)"):
+        Worker(store, Console(), WorkerOptions(lease=0.5))
+    with pytest.raises(ValueError, match="at least 5 heartbeats"):
+        Worker(store, Console(), WorkerOptions(lease=1, heartbeat=0.5))
+    Worker(store, Console(), WorkerOptions(lease=1, heartbeat=0.2))
+
+
+def test_a_job_retried_to_resume_runs_before_a_higher_priority_one_on_its_plotter(store, snapshots, capsys):
+    """The repro of the review: the interrupted sheet is on the plotter; queue retry must not let
+    another job draw on it."""
+    snap = snapshots[("grbl", "force")]
+    store.add([NewJob(snap, "sim://a")])
+    plotter = FakePlotter(fail_at={1: (5, False)})
+    assert Worker(store, Console(), WorkerOptions(), runner=plotter).run().ended == {"interrupted": [1]}
+    store.add([NewJob(snapshots[("graphtec-ce6000", "force")], "sim://a", 5)])
+    assert main(["queue", "retry", "1", "--queue", str(store.path)]) == 0
+    assert "resumes at byte" in capsys.readouterr().out
+    assert Worker(store, Console(), WorkerOptions(mode="once"), runner=plotter).run().ended == {"done": [1]}
+    assert plotter.drawn["sim://a"] == original_strokes(snap)  # the sheet finished, nothing else on it
+    assert store.job(2).state == "queued"
+
+
+def _damage_first_snapshot(path: Path) -> None:
+    import sqlite3
+
+    with sqlite3.connect(path) as db:
+        db.execute("UPDATE snapshots SET program = replace(program, 'G1', 'G0') WHERE id = 1")
+
+
+@pytest.mark.parametrize("dry_run", [False, True])
+def test_jobs_with_a_damaged_snapshot_fail_loudly_and_the_others_run(tmp_path, capsys, dry_run):
+    queue = ["--queue", str(tmp_path / "q.sqlite3")]
+    for copies in ("2", "1"):
+        assert main(["queue", "add", str(HEXAGON), "--device", "grbl", "--port", "sim://grbl?time=instant",
+                     "--copies", copies, *queue]) == 0
+    _damage_first_snapshot(tmp_path / "q.sqlite3")
+    capsys.readouterr()
+    code = main(["queue", "run", *(["--dry-run"] if dry_run else []), *queue])
+    out, err = capsys.readouterr()
+    assert code == 2
+    for job in (1, 2):
+        assert f"job {job} failed: cannot start: job {job}: its stored program does not match its SHA-256" in out
+    assert "job 3 done" in out and "2 failed (1, 2); 1 done (3)" in out
+    assert err.startswith("foldfab: error: 2 job(s) failed: foldfab queue show ID says why")
+    store = SqliteQueueStore(tmp_path / "q.sqlite3")
+    expected = ["queued"] * 3 if dry_run else ["failed", "failed", "done"]
+    assert [j.state for j in store.jobs()] == expected
+
+
 def test_threads_running_workers_run_every_job_exactly_once(store, snapshots):
     snap = snapshots[("grbl", "force")]
     store.add([NewJob(snap, f"sim://p{i}", 0, 4) for i in range(3)])
@@ -470,6 +539,7 @@ def test_dry_run_rehearses_on_simulated_plotters_and_changes_nothing(tmp_path):
     run = foldfab("queue", "run", "--dry-run", *queue)
     assert "dry run on sim://?time=instant instead of /dev/plotter-not-connected" in run.stdout
     assert "answered by the dry run" in run.stdout and "2 done (1, 2)" in run.stdout
+    assert "job 2 pauses: " in run.stdout and "queue continue" not in run.stdout  # nothing to answer
     assert foldfab("queue", "list", "--json", *queue).stdout == before
     assert foldfab("queue", "run", "--once", "--device", "nonesuch", *queue).stdout.startswith("nothing to run")
 

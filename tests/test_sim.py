@@ -857,3 +857,36 @@ def test_a_new_port_plugs_into_the_same_device():
     assert again.read_until(b"\r\n").startswith(b"<Idle|")  # position kept, no alarm
     again.write(b"\x18")
     assert again.read_until(b"help]\r\n") == BANNER
+
+
+def test_a_session_reopened_resets_the_board_as_it_is_now():
+    """The board runs on while no port is open: a port opened after the last move has ended resets
+    an idle board (no alarm: a queue's next job after a cancelled one), one opened during a move
+    stops it (ALARM:3)."""
+    url = "sim://grbl?time=fast&speedup=20&session=test-reopen-{}"
+    port = open_port(url.format(1), timeout=2)
+    assert port.read_until(b"help]\r\n") == BANNER
+    port.write(b"G0 Z5\nG0 X20\n")  # what a cancelled job's last words are: the pen up, parked
+    assert port.read_until(b"ok\r\nok\r\n") == b"ok\r\nok\r\n"
+    port.close()
+    sim = port.simulator
+    end = sim.next_event()
+    assert sim.clock.now() < end < math.inf  # closed while the board still moves
+    while sim.clock.now() <= end:
+        time.sleep(0.005)
+    again = open_port(url.format(1), timeout=2)
+    assert again.simulator is sim
+    assert again.read_until(b"help]\r\n") == BANNER
+    assert sim.stats.alarms == [] and not sim.alarm
+    again.write(b"?")
+    assert again.read_until(b"\r\n").startswith(b"<Idle|MPos:20.000,")
+    again.close()
+
+    port = open_port(url.format(2), timeout=2)
+    port.read_until(b"help]\r\n")
+    port.write(b"G1 X200 F100\n")  # two minutes of virtual time, six seconds of wall time
+    assert port.read_until(b"ok\r\n") == b"ok\r\n"
+    port.close()
+    again = open_port(url.format(2), timeout=2)
+    assert again.read_until(b"unlock]\r\n") == b"ALARM:3\r\n" + BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n"
+    again.close()

@@ -6,7 +6,9 @@ the options are :mod:`foldfab.sim.options`.  The simulator is ``port.simulator``
 before ``open()`` to simulate it under ``sim://`` with no name, or an existing
 simulator to ``port.simulator`` to plug the cable back into the same device; the
 ``session=NAME`` option does the same by name (every open with that session in this
-process reaches the plotter the first one created).
+process reaches the plotter the first one created).  The plotter runs on while no port
+is open to it: opening one brings it up to the clock's present first, so the reset of a
+GRBL board at open finds the moves that ended meanwhile ended (no ``ALARM:3``).
 
 The port's settings act as a host driver's would: ``baudrate``, ``bytesize``,
 ``parity`` and ``stopbits`` set the wire time; with ``xonxoff`` the driver stops
@@ -69,11 +71,15 @@ class Serial(SerialBase):
                 self.simulator = self._create(self._port)
             except FoldfabError as exc:
                 raise SerialException(str(exc)) from None
-        self.simulator.disconnected = False  # the cable is back in, with a fresh driver
-        self.simulator.xoff = False
-        self.is_open = True
-        self._reconfigure_port()
-        self.simulator.connect()
+        with self._lock:
+            # The board ran on while no port was open (a session's or a given simulator): bring
+            # it up to now first, so that the reset at open sees the moves that are over as over.
+            self.simulator.advance(self.simulator.clock.now())
+            self.simulator.disconnected = False  # the cable is back in, with a fresh driver
+            self.simulator.xoff = False
+            self.is_open = True
+            self._reconfigure_port()
+            self.simulator.connect()
 
     def _create(self, url: str) -> Simulator:
         from foldfab.devices import load_device
