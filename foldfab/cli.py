@@ -209,7 +209,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     from foldfab.errors import FoldfabError
     from foldfab.progress import reporter
-    from foldfab.resume import PlotStopped, plot
+    from foldfab.resume import PlotStopped, ResumeNotStarted, plot
 
     if args.preview:
         _check_output(Path(args.preview), "--preview", (".svg",))
@@ -249,18 +249,32 @@ def cmd_plot(args: argparse.Namespace) -> int:
         message = str(stop)
         if stop.token:
             if args.json:
-                print(json.dumps({"event": "resume", "token": stop.token, "stroke": stop.stroke,
+                print(json.dumps({"event": "resume_token", "token": stop.token, "stroke": stop.stroke,
                                   "strokes": stop.strokes}), flush=True)
-            again = ["foldfab", "plot", args.job, "--device", args.device, "--port", port,
-                     "--resume", stop.token]
-            message += f"; to finish the job run: {shlex.join(again)}"
+            message += f"; to finish the job run: {shlex.join(_resume_command(args, port, stop.token))}"
         kind = "stopped" if stop.exit_code == 130 else "error"
         print(f"foldfab: {kind}: {message}", file=sys.stderr)
         return stop.exit_code
+    except ResumeNotStarted as exc:  # once the fault is mended, the same command finishes the job
+        raise FoldfabError(f"{exc}; nothing was sent, and the resume token stays valid: "
+                           f"{shlex.join(_resume_command(args, port, exc.token))}") from None
     finally:
         for name, handler in previous.items():
             signal.signal(getattr(signal, name), handler)
     return 0
+
+
+def _resume_command(args: argparse.Namespace, port: str, token: str) -> list[str]:
+    """The ``foldfab plot`` command that finishes a stopped plot: this one's job, device, port,
+    link settings and answers to pauses, with ``--resume``."""
+    command = ["foldfab", "plot", args.job, "--device", args.device, "--port", port]
+    if args.baud:
+        command += ["--baud", str(args.baud)]
+    for switch in ("xonxoff", "rtscts"):
+        if getattr(args, switch) is not None:
+            command.append(f"--{switch}" if getattr(args, switch) else f"--no-{switch}")
+    command += [f"--{flag.replace('_', '-')}" for flag in ("yes", "json", "allow_penetration") if getattr(args, flag)]
+    return command + ["--resume", token]
 
 
 def _write_preview(fab, device, output: Path) -> None:
@@ -289,7 +303,7 @@ def _add_plot_parser(sub) -> None:
                       help="software flow control on the port (default: the profile's)")
     plot.add_argument("--rtscts", action=argparse.BooleanOptionalAction, default=None,
                       help="hardware flow control on the port (default: the profile's)")
-    plot.add_argument("--resume", metavar="TOKEN", help="finish a stopped plot (foldfab printed the token)")
+    plot.add_argument("--resume", type=_token, metavar="TOKEN", help="finish a stopped plot (foldfab printed the token)")
     plot.add_argument("--yes", action="store_true", help="without a terminal, continue at every pause")
     plot.add_argument("--json", action="store_true", help="progress as JSON lines on stdout")
     plot.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
@@ -509,10 +523,17 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
 
 
 def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected 1 or more, got {value}")
-    return value
+    """An argparse type: a whole number, 1 or more."""
+    return _int_from(1, sys.maxsize, "expected 1 or more")(text)
+
+
+def _token(text: str) -> str:
+    """An argparse type: a resume token, not empty (``--resume "$TOKEN"`` with TOKEN unset must not
+    plot the whole job again)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected the resume token foldfab printed when the plot stopped, "
+                                         "got an empty one")
+    return text
 
 
 def _int_from(low: int, high: int, what: str):

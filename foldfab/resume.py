@@ -293,6 +293,15 @@ def _travel(device: DeviceProfile, point, protocol: str) -> str:
     return f"G0 X{fmt_number(x, 3)} Y{fmt_number(y, 3)}\n"
 
 
+class ResumeNotStarted(FoldfabError):
+    """A resume that could not start (the port would not open, the plotter was in an alarm):
+    nothing was sent, so its ``token`` stays valid."""
+
+    def __init__(self, error: FoldfabError, token: str):
+        super().__init__(str(error))
+        self.token = token
+
+
 class PlotStopped(FoldfabError):
     """A plot stopped before its end, after the safe stop; ``token`` names its resume state."""
 
@@ -342,7 +351,10 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
         cut = strokes[first].offset
         pending = sum(p.offset <= cut for p in program.pauses) - state.pauses_done
     progress = JobProgress(sending, device)
-    link = open_port(port, device, **settings)
+    try:
+        link = open_port(port, device, **settings)
+    except FoldfabError as exc:
+        raise exc if state is None else ResumeNotStarted(exc, state.token) from None
     try:
         result = stream(link, sending, device, events=events, cancel=cancel, operator=operator,
                         stall_timeout=stall_timeout, progress=progress, note=note)
@@ -361,6 +373,8 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
         elif state is not None:
             state.path.unlink(missing_ok=True)
         raise PlotStopped(stop, token, stroke, len(strokes)) from None
+    except FoldfabError as exc:  # before anything was sent (the plotter's state at connecting)
+        raise exc if state is None else ResumeNotStarted(exc, state.token) from None
     finally:
         link.close()
     if state is not None:

@@ -1068,15 +1068,25 @@ class _GrblSender(_Sender):
                     return None  # it rebooted: its position is gone
             if isinstance(self.device.gcode.pen_up, str):
                 return None
-            self.wait(lambda: self.report is not None and self.report[0] in ("Idle", "Alarm"),
+            # At rest: idle, or in a feed hold that has come to a stop (a stop whose lifting
+            # was itself interrupted leaves the board so); an alarm says its position may be lost.
+            self.wait(lambda: self.report is not None and (self.report[0] in ("Idle", "Alarm") or (
+                self.report[0] == "Hold" and self.substate in (None, "0"))),
                       "the end of the lines it held", self.stall_timeout)
             if self.state == "Alarm":
-                return None  # its position may be lost: it says so
+                return None
+            held = self.state == "Hold"
             self.banner = ""
             self.write(b"\x18")
             self.wait(lambda: bool(self.banner), "the soft reset", self.stall_timeout)
             self.report = None
             self.wait(lambda: self.report is not None, "a status report", self.stall_timeout)
+            if held and self.state == "Alarm":
+                # GRBL alarms at a reset in a feed hold (ALARM:3) though the motion was over and
+                # the position kept, as when a stop lifts the tool (lift): unlock it the same way.
+                self.send_line(b"$X\n")
+                self.report = None
+                self.wait(lambda: self.report is not None, "a status report", self.stall_timeout)
             if self.state == "Alarm" or self.machine_position is None:
                 return None
             from foldfab.interpret import GcodeMachine

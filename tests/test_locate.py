@@ -253,3 +253,29 @@ def test_a_cancelled_or_cut_plot_may_be_located(tmp_path, monkeypatch):
     with pytest.raises(PlotStopped) as stopped:
         plot(program, device, job=job, port="sim://?time=instant&sheet=A3&disconnect_after=3000")
     assert not stopped.value.stop.plotter_error and load_state(stopped.value.token).locate
+
+
+def test_a_grbl_board_left_in_a_feed_hold_is_located_and_unlocked():
+    """A stop whose lifting was itself interrupted (Ctrl-C twice) leaves the board in a feed hold.
+    The hold has come to rest, so the position is kept: the resume asks it, resets the board,
+    unlocks the ALARM:3 GRBL raises at a reset in a hold (as the stop's own lift does), and
+    finishes the job, no stroke lost."""
+    device, fab = job_for("grbl", None)
+    want = strokes_of(fab.program, device)
+    url = "sim://?time=instant&sheet=A3&session=held-board&reset_on_open=0"
+    with pytest.raises(StreamStopped) as stopped:
+        stream(open_port(f"{url}&disconnect_after=1500", device, baudrate=FAST_BAUD), fab.program, device)
+    held = open_port(url, device, baudrate=FAST_BAUD)
+    plotter = held.simulator
+    held.write(b"!")
+    held.close()
+    assert plotter._status().startswith("<Hold:0|")
+    acked = JobProgress(fab.program, device).strokes_done(stopped.value.acknowledged)
+    located, note = locate_resume(fab.program, device, url, acked, 0, baudrate=FAST_BAUD)
+    assert not note.startswith("could not ask"), note
+    assert plotter._status().startswith("<Idle|") and plotter.stats.alarms == ["ALARM:3"]
+    assert acked <= located
+    stream(open_port(url, device, baudrate=FAST_BAUD), resume_program(fab.program, device, located, 0), device)
+    drawn = [s for s in plotter.strokes if s.length > 0]
+    assert same_points(drawn[len(drawn) - (len(want) - located):], want[located:])
+    assert leading_matches(drawn[:len(drawn) - (len(want) - located)], want) >= located

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shlex
 import os
 import signal
 import subprocess
@@ -13,7 +14,9 @@ from pathlib import Path
 import pytest
 
 from foldfab.cli import main
+from foldfab.devices import load_device
 from foldfab.resume import state_dir
+from foldfab.transport import open_port
 
 ROOT = Path(__file__).resolve().parent.parent
 HELIX = str(ROOT / "jobs/helix-fig12.toml")
@@ -130,3 +133,46 @@ def test_ctrl_c_stops_safely_exits_130_and_prints_the_resume_command(sig, tmp_pa
     assert "--resume" in last
     token = last.split("--resume ")[1].split()[0]
     assert (tmp_path / "state" / "foldfab" / "resume" / f"{token}.json").exists()
+
+
+def test_the_printed_resume_command_keeps_the_link_settings_and_the_answers(capsys, tmp_path):
+    """A stopped two-sided plot run with --yes, a baud rate and flow switches prints a command
+    that resumes it the same way (without --yes it would refuse to run without a terminal)."""
+    job = two_sided(tmp_path)
+    code, out, err = plot(capsys, job, "--device", "grbl", "--port", f"{INSTANT}&error_at=30", "--yes",
+                          "--baud", "57600", "--no-xonxoff", "--rtscts", "--json")
+    assert code == 2
+    command = shlex.split(err.split("to finish the job run: ")[1])
+    token = command[command.index("--resume") + 1]
+    assert command == ["foldfab", "plot", job, "--device", "grbl", "--port", f"{INSTANT}&error_at=30",
+                       "--baud", "57600", "--no-xonxoff", "--rtscts", "--yes", "--json", "--resume", token]
+    events = [json.loads(line) for line in out.splitlines()]
+    assert events[-1] == {"event": "resume_token", "token": token, "stroke": events[-1]["stroke"],
+                          "strokes": events[-1]["strokes"]}
+    assert "resume" not in [e["event"] for e in events[:-1] if "token" in e]  # one name, one meaning
+    code, out, err = plot(capsys, *command[2:command.index("--port") + 1], INSTANT,
+                          *command[command.index("--port") + 2:])
+    assert code == 0, err
+
+
+def test_an_empty_resume_token_is_refused_not_a_whole_new_plot(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["plot", HELIX, "--device", "grbl", "--port", INSTANT, "--resume", ""])
+    out, err = capsys.readouterr()
+    assert exit_.value.code == 2 and out == ""
+    assert "--resume: expected the resume token foldfab printed when the plot stopped" in err
+
+
+def test_a_resume_that_cannot_start_keeps_its_token_and_says_how_to_finish(capsys, tmp_path):
+    job = str(tmp_path / "helix.toml")
+    Path(job).write_text(Path(HELIX).read_text())
+    code, out, err = plot(capsys, job, "--device", "grbl", "--port", f"{INSTANT}&error_at=30")
+    token = err.split("--resume ")[1].split()[0]
+    board = f"{INSTANT}&session=alarmed&reset_on_open=0"
+    open_port(board, load_device("grbl")).simulator.alarm = True  # e.g. reset while it moved: ALARM:3
+    code, out, err = plot(capsys, job, "--device", "grbl", "--port", board, "--resume", token)
+    assert code == 2 and err.count("\n") == 1
+    assert "is in alarm state: home it ($H) or unlock it ($X)" in err
+    assert "nothing was sent, and the resume token stays valid: " in err
+    assert err.rstrip().endswith(f"--resume {token}")
+    assert (state_dir() / f"{token}.json").exists()
