@@ -22,8 +22,7 @@ def _design_outputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
     for kind, path in outputs:
         if kind == "mesh" and path.suffix.lower() not in MESH_SUFFIXES:
             raise FoldfabError(f"--mesh {path}: unknown mesh format {path.suffix!r}; use one of {', '.join(MESH_SUFFIXES)}")
-        if not path.parent.exists() and str(path.parent):
-            raise FoldfabError(f"--{kind} {path}: folder {path.parent} does not exist; create it first")
+        _check_folder(path, f"--{kind}")
     return outputs
 
 
@@ -91,8 +90,18 @@ def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> None:
 
     if path.suffix.lower() not in suffixes:
         raise FoldfabError(f"{option} {path}: expected a file ending in {', '.join(suffixes)}")
-    if str(path.parent) and not path.parent.exists():
-        raise FoldfabError(f"{option} {path}: folder {path.parent} does not exist; create it first")
+    _check_folder(path, option)
+
+
+def _check_folder(path: Path, option: str) -> None:
+    """An output path must name a file in a folder that exists: said before any work is done."""
+    from foldfab.errors import FoldfabError
+
+    if path.is_dir():
+        raise FoldfabError(f"{option} {path}: is a folder; give the name of a file in it")
+    if str(path.parent) and not path.parent.is_dir():
+        what = "is a file, not a folder" if path.parent.exists() else "does not exist; create it first"
+        raise FoldfabError(f"{option} {path}: folder {path.parent} {what}")
 
 
 def fabrication_report(fab, device) -> dict:
@@ -823,3 +832,7 @@ def main(argv: list[str] | None = None) -> int:
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except OSError as exc:  # the system refused (no room, no permission): one line, as for a mistake
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"foldfab: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2

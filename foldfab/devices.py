@@ -238,6 +238,13 @@ class DeviceProfile:
         return 1.0 / self.units_per_mm if self.protocol == "hpgl" else 10.0 ** -GCODE_DECIMALS
 
     @property
+    def park_units(self) -> tuple[float, float]:
+        """The park position in device units as programs write it (whole plotter units in
+        HP-GL): where the pen waits at pauses and at the end, and so where a job starts."""
+        x, y = (v * self.units_per_mm for v in self.motion.park)
+        return (round(x), round(y)) if self.protocol == "hpgl" else (x, y)
+
+    @property
     def language(self) -> Dialect:
         """What this device's plotter language can express."""
         return DIALECTS[self.protocol][self.dialect]
@@ -320,9 +327,12 @@ def _builtin_dir() -> Path:
 
 def _load_file(path: Path) -> DeviceProfile:
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except tomllib.TOMLDecodeError as exc:
         raise FoldfabError(f"{path}: not valid TOML ({exc}); fix the syntax") from None
+    except UnicodeDecodeError as exc:
+        raise FoldfabError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); save the profile "
+                           "as UTF-8") from None
     except OSError as exc:
         raise FoldfabError(f"{path}: cannot read ({exc.strerror})") from None
     return _parse(_Reader(data, str(path)))
@@ -451,7 +461,7 @@ _TOOL_KEYS = {
     "pen": ("an integer pen/tool number >= 0", _integer(0)),
     "force": ("a number >= 0 (device force units)", _number(0)),
     "speed": ("a speed in mm/s > 0", _number(0, open_lo=True)),
-    "passes": ("an integer >= 1", _integer(1, 100)),
+    "passes": ("an integer from 1 to 100", _integer(1, 100)),
 }
 _PEN_POSITION = 'a Z height in mm (number) or a servo command like "M3 S30" or "M5"'
 

@@ -46,6 +46,14 @@ class FabricationSpec:
     layers: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
+PERFORATION_MIN = 0.1
+"""mm: the shortest cut or gap of a perforation.  A blade cannot cut a shorter piece apart from
+the next one (a plotter step is 0.025 mm), and every cut is a pen lift: shorter ones would
+turn a crease into a near-solid slit drawn by a million lifts."""
+PERFORATION_MAX = 1000.0
+"""mm: the longest cut or gap of a perforation (a metre)."""
+
+
 def parse_fabrication(data: dict, source: str) -> FabricationSpec:
     """Validate a job's ``[fabrication]`` table; errors name the key."""
     from foldfab.optimize import METHODS
@@ -75,8 +83,10 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
             if sub.has(kind):
                 pattern = sub.get(kind)
                 if (not isinstance(pattern, list) or len(pattern) < 2 or len(pattern) % 2
-                        or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0 for v in pattern)):
-                    sub.fail(kind, f"expected an even-length list of positive mm [cut, gap, ...], got {pattern!r}")
+                        or any(isinstance(v, bool) or not isinstance(v, (int, float))
+                               or not PERFORATION_MIN <= v <= PERFORATION_MAX for v in pattern)):
+                    sub.fail(kind, f"expected an even-length list [cut, gap, ...] of lengths from {PERFORATION_MIN:g} "
+                                   f"to {PERFORATION_MAX:g} mm, got {pattern!r}")
                 perforation[kind] = tuple(float(v) for v in pattern)
         clearance = sub.number("clearance", clearance, minimum=0.0)
         sub.check_unknown()
@@ -131,18 +141,33 @@ def both_sides(area: tuple[float, float, float, float], sheet: tuple[float, floa
     """The part of ``area`` (x0, y0, x1, y1, sheet mm) that the device reaches on the front of
     the sheet and, once it is flipped about ``flip_edge``, on its back: the back's strokes are
     the front's mirrored, so a two-sided design must lie where both land within reach."""
+    reach = _both_sides(area, sheet, flip_edge)
+    if reach is None:
+        x0, y0, x1, y1 = area
+        axis = 0 if flip_edge == "left" else 1
+        size = sheet[axis]
+        name = "x" if axis == 0 else "y"
+        other = "top" if flip_edge == "left" else "left"
+        advice = (f"set [fabrication].flip_edge = \"{other}\" or use a sheet the device reaches whole"
+                  if _both_sides(area, sheet, other) is not None else
+                  "flipped either way the sheet is not reached on both sides: use a sheet the device "
+                  "reaches whole, or the force strategy")
+        raise FoldfabError(
+            f"the device reaches {name} {area[axis]:g}..{area[axis + 2]:g} mm of the {size:g} mm sheet, and "
+            f"flipped {FLIPS[flip_edge]} its back would need {name} {size - area[axis + 2]:g}..{size - area[axis]:g} mm: "
+            f"no part of the sheet is reached on both sides; {advice}")
+    return reach
+
+
+def _both_sides(area: tuple[float, float, float, float], sheet: tuple[float, float],
+                flip_edge: str) -> tuple[float, float, float, float] | None:
+    """:func:`both_sides`, None where no part of the sheet is reached on both sides."""
     x0, y0, x1, y1 = area
     axis = 0 if flip_edge == "left" else 1
     lo, hi, size = (x0, x1, sheet[0]) if axis == 0 else (y0, y1, sheet[1])
     lo, hi = max(lo, size - hi), min(hi, size - lo)
     if hi <= lo:
-        name = "x" if axis == 0 else "y"
-        other = "top" if flip_edge == "left" else "left"
-        raise FoldfabError(
-            f"the device reaches {name} {area[axis]:g}..{area[axis + 2]:g} mm of the {size:g} mm sheet, and "
-            f"flipped {FLIPS[flip_edge]} its back would need {name} {size - area[axis + 2]:g}..{size - area[axis]:g} mm: "
-            f"no part of the sheet is reached on both sides; set [fabrication].flip_edge = \"{other}\" or use a "
-            "sheet the device reaches whole")
+        return None
     return (lo, y0, hi, y1) if axis == 0 else (x0, lo, x1, hi)
 
 

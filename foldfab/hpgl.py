@@ -31,7 +31,7 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
 
     items = sweeps(plan, device)
     out = ProgramBuilder("hpgl", device)
-    park_x, park_y = (round(v * device.units_per_mm) for v in device.motion.park)
+    park_x, park_y = device.park_units
     park = f"PU{park_x},{park_y};SP0;"
     out.write("IN;")
     pen = force = speed = None

@@ -2,8 +2,8 @@
 
 :func:`interpret` turns an HPGL or G-code program into an :class:`Interpretation`:
 pen-down strokes in sheet millimetres with the tool state the program set, pen-up
-travel moves (including the first one from the device origin and the last one to
-the park position), and pauses.  Given a :class:`~foldfab.program.Program` rather
+travel moves (including the first one from the park position, where the last job
+left the pen, and the last one back to it), and pauses.  Given a :class:`~foldfab.program.Program` rather
 than bare text, strokes are also labelled with their plan step, layer and
 repetition, and HPGL pauses (which exist only as offsets) are placed.
 
@@ -340,9 +340,9 @@ def interpret(program: Program | str, device: DeviceProfile,
     if known is not None and known.protocol != device.protocol:
         raise FoldfabError(f"a {known.protocol} program cannot run on {device.name} "
                            f"({device.protocol})")
-    if device.protocol == "hpgl":
-        return HPGLMachine(device, frame, known).run(text)
-    return GcodeMachine(device, frame, known).run(text)
+    machine = (HPGLMachine if device.protocol == "hpgl" else GcodeMachine)(device, frame, known)
+    machine.position = device.park_units  # where the last job left the pen, as the optimizer assumes
+    return machine.run(text)
 
 
 class Machine:

@@ -667,7 +667,7 @@ def test_output_path_is_a_folder(capsys, tmp_path):
     (tmp_path / "taken.cp").mkdir()
     rc, out, err = run(capsys, "design", REPO / "jobs" / "star.toml", "--fold", tmp_path / "a.fold",
                        "--svg", tmp_path / "a.svg", "--cp", tmp_path / "taken.cp")
-    assert_one_line_error(rc, out, err, "--cp", "taken.cp", "cannot write")
+    assert_one_line_error(rc, out, err, "--cp", "taken.cp", "is a folder")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["taken.cp"]
     assert list((tmp_path / "taken.cp").iterdir()) == []
 
@@ -676,13 +676,13 @@ def test_a_failed_write_keeps_the_files_that_were_there(capsys, tmp_path):
     # Outputs that existed before stay as they were, not replaced and then deleted.
     (tmp_path / "keep.fold").write_text("previous fold")
     (tmp_path / "keep.cp").write_text("previous cp")
-    (tmp_path / "taken.svg").mkdir()
+    (tmp_path / "full.svg").symlink_to("/dev/full")  # a device, written in place: no room on it
     rc, out, err = run(capsys, "design", REPO / "jobs" / "star.toml", "--fold", tmp_path / "keep.fold",
-                       "--svg", tmp_path / "taken.svg", "--cp", tmp_path / "keep.cp")
-    assert_one_line_error(rc, out, err, "--svg", "taken.svg", "cannot write")
+                       "--svg", tmp_path / "full.svg", "--cp", tmp_path / "keep.cp")
+    assert_one_line_error(rc, out, err, "--svg", "full.svg", "cannot write: No space left on device")
     assert (tmp_path / "keep.fold").read_text() == "previous fold"
     assert (tmp_path / "keep.cp").read_text() == "previous cp"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.cp", "keep.fold", "taken.svg"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["full.svg", "keep.cp", "keep.fold"]
 
 
 # --------------------------------------------------------------------------- a real process

@@ -82,12 +82,17 @@ def test_two_sided_preview_states_the_flip(tmp_path, capsys):
     (["--device", "{tmp}/broken.toml"], ["broken.toml", "baudrate"]),               # bad profile names file, key
     (["--device", "grbl", "-o", "{tmp}/x.plt"], [".gcode"]),                        # wrong program extension
     (["--device", "graphtec-ce6000", "-o", "{tmp}/nope/x.plt"], ["does not exist"]),  # missing folder
+    (["--device", "graphtec-ce6000", "-o", "{tmp}/other/taken.plt"], ["-o", "taken.plt: is a folder"]),
+    (["--device", "graphtec-ce6000", "-o", "{tmp}/broken.toml/x.plt"], ["broken.toml is a file, not a folder"]),
+    (["--device", "graphtec-ce6000", "-o", "{tmp}/other/full.plt"], ["full.plt: No space left on device"]),
 ])
 def test_export_errors(tmp_path, capsys, args, needles):
     out_dir = tmp_path / "out"
     out_dir.mkdir()
     profile = (ROOT / "devices" / "grbl.toml").read_text().replace("baudrate = 115200", 'baudrate = "fast"')
     (tmp_path / "broken.toml").write_text(profile)
+    (tmp_path / "other" / "taken.plt").mkdir(parents=True)
+    (tmp_path / "other" / "full.plt").symlink_to("/dev/full")  # written in place, and the device is full
     args = [a.format(tmp=tmp_path) for a in args]
     if "-o" not in args:
         args += ["-o", str(out_dir / "x.gcode")]

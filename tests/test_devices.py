@@ -128,7 +128,8 @@ def test_tool_for_merges_and_validates_overrides():
         ({"speed": "fast"}, "key 'layers.cut.speed': expected a speed in mm/s > 0, got 'fast'"),
         ({"speed": 25}, "key 'layers.cut.speed': expected a multiple of 10 mm/s"),
         ({"force": 99}, "key 'layers.cut.force': expected a value in [1, 38]"),
-        ({"passes": 0}, "key 'layers.cut.passes': expected an integer >= 1"),
+        ({"passes": 0}, "key 'layers.cut.passes': expected an integer from 1 to 100"),
+        ({"passes": 1000}, "key 'layers.cut.passes': expected an integer from 1 to 100, got 1000"),
         ({"pen": True}, "key 'layers.cut.pen'"),
         ({"depth": 1}, "unknown key 'layers.cut.depth'"),
     ]:
@@ -182,3 +183,13 @@ def test_wheel_contains_builtin_profiles_and_every_module(tmp_path):
     assert "foldfab/builtin_devices/README.md" in names
     modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / "foldfab").rglob("*.py")}
     assert modules <= names  # automatic discovery still finds every subpackage
+
+
+def test_a_profile_that_is_not_utf8_is_a_clear_error(tmp_path):
+    path = tmp_path / "latin.toml"
+    path.write_bytes(Path(load_device("grbl").source).read_bytes().replace(b'model = "', b'model = "\xff\xfe'))
+    with pytest.raises(FoldfabError, match=r"latin\.toml: not UTF-8 text \(invalid start byte at byte \d+\); "
+                                           r"save the profile as UTF-8"):
+        load_device(str(path))
+    path.write_bytes(b"\xef\xbb\xbf" + Path(load_device("grbl").source).read_bytes())  # a byte-order mark is fine
+    assert load_device(str(path)).name == "grbl"

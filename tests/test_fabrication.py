@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ from hypothesis import strategies as st
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
+from foldfab.estimate import estimate
 from foldfab.fabrication import fabricate, finish_plan, parse_fabrication
 from foldfab.interpret import interpret
 from foldfab.program import write_program
@@ -295,6 +297,9 @@ def test_a_design_scaled_below_ten_plotter_steps_is_refused(device_name):
     ({"scale": 0}, r"\[fabrication\]\.scale: must be greater than 0"),
     ({"optimize": "best"}, r"\[fabrication\]\.optimize"),
     ({"perforate": {"valley": [1, 1, 1]}}, r"\[fabrication\.perforate\]\.valley: expected an even-length list"),
+    ({"perforate": {"valley": [1e-9, 1e-9]}}, r"\.valley: expected .* lengths from 0\.1 to 1000 mm, got \[1e-09"),
+    ({"perforate": {"mountain": [1, float("inf")]}}, r"\.mountain: expected .* from 0\.1 to 1000 mm, got \[1, inf\]"),
+    ({"perforate": {"valley": [0.05, 1]}}, r"\.valley: expected .* from 0\.1"),
     ({"layers": {"fold": {}}}, r"\[fabrication\.layers\]\.fold: unknown key; expected one of: cut, mountain, valley$"),
     ({"perforation": {}}, r"\[fabrication\]\.perforation: unknown key; expected one of: flip_edge, "
                           r"layers, margin, optimize, perforate, rotate, scale, sheet, strategy$"),
@@ -333,6 +338,26 @@ def test_reported_travel_is_the_programs(job, strategy, device_name):
         assert figures["total"] == pytest.approx(run.travel_length, abs=rounding)
 
 
+@pytest.mark.parametrize("device_name", DEVICES)
+def test_a_job_starts_and_ends_at_the_park_position(device_name, tmp_path):
+    """With the park position away from the device origin, the program, its interpretation (so
+    the preview and the estimate) and the optimizer's travel all start where the pen waits."""
+    text = Path(load_device(device_name).source).read_text()
+    assert "park = [0, 0]" in text
+    profile = tmp_path / "parked.toml"
+    profile.write_text(text.replace("park = [0, 0]", "park = [100, 120]"))
+    device = load_device(str(profile))
+    fab = fabricate(load_design(ROOT / "jobs" / "star.toml"), device, spec(strategy="two-sided"))
+    run = interpret(fab.program, device, fab.plan.sheet)
+    park = device.frame(fab.plan.sheet).to_sheet(np.array([[100.0, 120.0]]) * device.units_per_mm)[0]
+    np.testing.assert_allclose(run.travels[0].start, park, atol=device.resolution)
+    np.testing.assert_allclose(run.travels[-1].end, park, atol=device.resolution)
+    rounding = (len(run.travels) + 1) * 1.5 * device.resolution
+    assert fab.travel_after["total"] == pytest.approx(run.travel_length, abs=rounding)
+    layers = estimate(run, device).layers.values()  # the report's and the preview legend's rows
+    assert sum(layer.travel_length for layer in layers) == pytest.approx(run.travel_length, abs=1e-6)
+
+
 @pytest.mark.parametrize("device_name", ["graphtec-ce6000", "grbl"])
 def test_reported_travel_counts_the_park_at_a_tool_change(device_name):
     """A cutter without a tool changer parks for the operator to load the cut's own tool (and a
@@ -363,6 +388,12 @@ def test_two_sided_placement_keeps_both_sides_within_reach(width, height, margin
         assert "reaches only" not in str(exc)
         assert "both sides of the sheet" in str(exc) or "no part of the sheet is reached on both sides" in str(exc) \
             or "leaves no room" in str(exc) or "under 10 of the device's steps" in str(exc)
+        suggested = re.search(r'flip_edge = "(\w+)"', str(exc))
+        if suggested:  # the flip an error suggests does reach both sides
+            try:
+                fabricate(design, device, parse_fabrication(dict(table, flip_edge=suggested[1]), "star"))
+            except FoldfabError as again:
+                assert "no part of the sheet is reached on both sides" not in str(again)
         return
     x0, y0, x1, y1 = device.frame(fab.plan.sheet).device_rect_on_sheet(*device.plottable_area)
     run = interpret(fab.program, device, fab.plan.sheet)
@@ -381,3 +412,14 @@ def test_a_flip_that_takes_the_back_out_of_reach_says_so():
                                            r"flip_edge = \"left\""):
         fabricate(design, device, parse_fabrication(table, "star"))
     fabricate(design, device, parse_fabrication(dict(table, flip_edge="left"), "star"))
+
+
+@pytest.mark.parametrize("flip", ["left", "top"])
+def test_a_sheet_out_of_reach_either_way_suggests_no_flip(flip):
+    device = load_device("hp7475a")  # reaches 416 x 259 mm of a 600 x 600 mm sheet
+    design = load_design(ROOT / "jobs" / "star.toml")
+    table = {"strategy": "two-sided", "sheet": [600, 600], "scale": 0.3, "flip_edge": flip}
+    with pytest.raises(FoldfabError) as error:
+        fabricate(design, device, parse_fabrication(table, "star"))
+    assert "flipped either way the sheet is not reached on both sides" in str(error.value)
+    assert "flip_edge =" not in str(error.value)
