@@ -533,7 +533,7 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
 
 def _positive_int(text: str) -> int:
     """An argparse type: a whole number, 1 or more."""
-    return _int_from(1, sys.maxsize, "expected 1 or more")(text)
+    return _int_from(1, None, "expected a whole number")(text)
 
 
 def _token(text: str) -> str:
@@ -545,15 +545,16 @@ def _token(text: str) -> str:
     return text
 
 
-def _int_from(low: int, high: int, what: str):
-    """An argparse type: a whole number from ``low`` to ``high``."""
+def _int_from(low: int, high: int | None, what: str):
+    """An argparse type: a whole number from ``low`` to ``high`` (None: no upper bound)."""
     def whole(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"{what} from {low} to {high}, got {value}")
+        if value < low or (high is not None and value > high):
+            bounds = f"from {low} to {high}" if high is not None else f"of {low} or more"
+            raise argparse.ArgumentTypeError(f"{what} {bounds}, got {value}")
         return value
     return whole
 

@@ -68,8 +68,9 @@ MIN_LEASE = LEASE_HEARTBEATS * DEFAULT_HEARTBEAT
 MAX_JOB_ID = 2 ** 63 - 1
 """SQLite's largest integer."""
 PRIORITIES = (-1000, 1000)
-"""Lowest and highest priority (as the studio allows)."""
+"""Lowest and highest priority (the command line and the studio)."""
 MAX_COPIES = 1000
+"""Most sheets of one job a single ``add`` queues."""
 DEFAULT_WAIT = 10.0
 
 
@@ -500,8 +501,6 @@ class SqliteQueueStore:
                 message = (f"{where}: its folder is not writable, and SQLite needs to create "
                            f"{self.path.name}-wal and {self.path.name}-shm beside it; nothing was changed; "
                            "make the folder writable, or choose another queue with --queue")
-            elif name.startswith("SQLITE_CANTOPEN") and self.path.is_dir():
-                message = self._folder_message()
             elif (name.startswith("SQLITE_CANTOPEN") and not self.path.exists()
                   and not os.access(self.path.parent, os.W_OK)):
                 message = (f"{where} cannot be created: its folder {self.path.parent} is not writable for you; "

@@ -447,7 +447,7 @@ class Studio:
 
     def queue(self, request: dict) -> dict:
         """Build the program now and add a snapshot of it to the plot queue."""
-        from foldfab.queue import NewJob, SqliteQueueStore, default_queue_path, make_snapshot
+        from foldfab.queue import MAX_COPIES, PRIORITIES, NewJob, SqliteQueueStore, default_queue_path, make_snapshot
 
         design, device, fab = self._fabricate(request)
         port = _field(request, "port", str, "") or device.port
@@ -455,8 +455,8 @@ class Studio:
             raise ApiError(f"{device.name} has no port: type one (a serial port such as /dev/ttyUSB0, or "
                            f"sim://{device.name} for a simulated plotter), or set port in {device.source}",
                            cause={"view": "file", "field": "port"})
-        copies = _number(request, "copies", 1, 1, 1000)
-        priority = _number(request, "priority", 0, -1000, 1000)
+        copies = _number(request, "copies", 1, 1, MAX_COPIES)
+        priority = _number(request, "priority", 0, *PRIORITIES)
         snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
         store = SqliteQueueStore(default_queue_path())
         try:
