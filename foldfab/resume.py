@@ -353,11 +353,11 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
     progress = JobProgress(sending, device)
     try:
         link = open_port(port, device, **settings)
-    except FoldfabError as exc:
-        raise exc if state is None else ResumeNotStarted(exc, state.token) from None
-    try:
-        result = stream(link, sending, device, events=events, cancel=cancel, operator=operator,
-                        stall_timeout=stall_timeout, progress=progress, note=note)
+        try:
+            result = stream(link, sending, device, events=events, cancel=cancel, operator=operator,
+                            stall_timeout=stall_timeout, progress=progress, note=note)
+        finally:
+            link.close()
     except StreamStopped as stop:
         stroke = first + progress.strokes_done(stop.acknowledged)
         answered = stop.pauses_done
@@ -373,10 +373,8 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
         elif state is not None:
             state.path.unlink(missing_ok=True)
         raise PlotStopped(stop, token, stroke, len(strokes)) from None
-    except FoldfabError as exc:  # before anything was sent (the plotter's state at connecting)
+    except FoldfabError as exc:  # before anything was sent: the port, or the plotter's state at connecting
         raise exc if state is None else ResumeNotStarted(exc, state.token) from None
-    finally:
-        link.close()
     if state is not None:
         state.path.unlink(missing_ok=True)
     return result

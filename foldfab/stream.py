@@ -1079,14 +1079,12 @@ class _GrblSender(_Sender):
             self.banner = ""
             self.write(b"\x18")
             self.wait(lambda: bool(self.banner), "the soft reset", self.stall_timeout)
-            self.report = None
-            self.wait(lambda: self.report is not None, "a status report", self.stall_timeout)
+            self.next_report()
             if held and self.state == "Alarm":
                 # GRBL alarms at a reset in a feed hold (ALARM:3) though the motion was over and
                 # the position kept, as when a stop lifts the tool (lift): unlock it the same way.
                 self.send_line(b"$X\n")
-                self.report = None
-                self.wait(lambda: self.report is not None, "a status report", self.stall_timeout)
+                self.next_report()
             if self.state == "Alarm" or self.machine_position is None:
                 return None
             from foldfab.interpret import GcodeMachine
@@ -1154,8 +1152,7 @@ class _GrblSender(_Sender):
             raise _Fault("GRBL did not answer the soft reset")
         self.pending.clear()
         self.in_rx = 0
-        self.report = None
-        self.wait(lambda: self.report is not None, "a status report", self.stall_timeout)
+        self.next_report()
         note = ""
         if self.state == "Alarm":
             self.send_line(b"$X\n")
@@ -1167,6 +1164,11 @@ class _GrblSender(_Sender):
             if read_gcode_line(raw).words:
                 self.send_line(raw.encode("ascii") + b"\n")
         return note
+
+    def next_report(self) -> None:
+        """Forget the last status report and wait for the next one (after a reset or ``$X``)."""
+        self.report = None
+        self.wait(lambda: self.report is not None, "a status report", self.stall_timeout)
 
     def send_line(self, data: bytes) -> None:
         """Send one line that is not part of the program and wait for its answer."""

@@ -242,13 +242,16 @@ def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = Non
     if not np.all(np.isfinite(ends)):
         raise FoldfabError(f"{where}: the chosen path of {file} has a point that is not a finite number; "
                            "check its d attribute")
+
+    def to_mm(points: np.ndarray) -> np.ndarray:
+        return np.column_stack([left + (points.real - min_x) * sx, base + (bottom - points.imag) * sy])
+
     x0, x1, y0, y1 = chosen_path.bbox()
-    if max(abs(left + (x - min_x) * sx) for x in (x0, x1)) > LENGTH_LIMIT or \
-            max(abs(base + (bottom - y) * sy) for y in (y0, y1)) > LENGTH_LIMIT:
+    if np.abs(to_mm(np.array([complex(x0, y0), complex(x1, y1)]))).max() > LENGTH_LIMIT:
         raise FoldfabError(f"{where}: the chosen path of {file} reaches beyond ±{LENGTH_LIMIT:,.0f} mm; "
                            "check the file's width, height and viewBox")
     pts = _sample(chosen_path, samples, tolerance or DEFAULT_TOLERANCE, max(sx, sy))
-    out = np.column_stack([left + (pts.real - min_x) * sx, base + (bottom - pts.imag) * sy])
+    out = to_mm(pts)
     keep = np.ones(len(out), bool)
     keep[1:] = np.any(np.abs(np.diff(out, axis=0)) > 1e-12, axis=1)
     return out[keep]
