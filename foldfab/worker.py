@@ -220,6 +220,7 @@ class _Heartbeat(threading.Thread):
         self.renewed = time.monotonic()
         self._poke = threading.Event()
         self._stopped = threading.Event()
+        self._saving = threading.Lock()  # one save at a time, so an older one never lands after a newer one
 
     def poke(self) -> None:
         """Save soon (a pause was answered)."""
@@ -233,10 +234,15 @@ class _Heartbeat(threading.Thread):
                 self.beat()
 
     def beat(self) -> None:
-        """One heartbeat; gives the job up if the lease could not be renewed in time."""
+        """One heartbeat; gives the job up if the lease could not be renewed in time.
+
+        Called from this thread and from the plotting thread (before a pause): the lock makes
+        each save read the progress when it is its turn, so a save started earlier can never
+        write older progress over a later one."""
         try:
-            control = self.store.heartbeat(self.job_id, self.worker, self.options.lease, self.acked,
-                                           self.progress, self.pauses_done, self.drawn)
+            with self._saving:
+                control = self.store.heartbeat(self.job_id, self.worker, self.options.lease, self.acked,
+                                               self.progress, self.pauses_done, self.drawn)
         except FoldfabError as exc:
             if time.monotonic() - self.renewed > 0.8 * self.options.lease:
                 self.give_up(f"the lease could not be renewed for {self.options.lease:g} s ({exc})")

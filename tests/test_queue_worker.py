@@ -629,3 +629,40 @@ def test_a_job_whose_last_run_failed_is_not_located():
     assert not _failed_last(log("queued", "started", "failed", "started", "interrupted"))
     assert not _failed_last(log("queued", "started", "interrupted"))
     assert not _failed_last(log("queued"))
+
+
+def test_an_earlier_save_never_lands_after_a_later_one():
+    """The heartbeat thread and the plotting thread (before a pause) both save progress: the
+    save that reads the progress first must also write it first (seen: a job waiting at its
+    pause with the acknowledged bytes of the stroke before it)."""
+    from foldfab.worker import _Heartbeat
+
+    class SlowStore:
+        def __init__(self):
+            self.saved, self.inside, self.entered, self.release = [], 0, threading.Event(), threading.Event()
+
+        def heartbeat(self, job_id, worker, lease, acked, *rest):
+            self.inside += 1
+            try:
+                if not self.entered.is_set():
+                    self.entered.set()
+                    assert self.release.wait(60)
+                self.saved.append((acked, self.inside))
+            finally:
+                self.inside -= 1
+            return type("Control", (), {"lost": False, "cancel_requested": False})()
+
+    store = SlowStore()
+    beat = _Heartbeat(store, None, 1, WorkerOptions(), threading.Event())
+    beat.acked = 260
+    first = threading.Thread(target=beat.beat)
+    first.start()
+    assert store.entered.wait(60)
+    beat.acked = 270  # the stroke before the pause is acknowledged; the pause saves it
+    second = threading.Thread(target=beat.beat)
+    second.start()
+    second.join(1.0)  # without the lock the second save lands now, before the first
+    store.release.set()
+    first.join(60)
+    second.join(60)
+    assert store.saved == [(260, 1), (270, 1)]
