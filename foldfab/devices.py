@@ -278,7 +278,7 @@ class DeviceProfile:
                        if key in reader.data})
         reader.done()
         _check_tool(self, reader, **values)
-        return Tool(**values)
+        return Tool(**values, pen_down=base.pen_down if like != layer_name else None)
 
     def lacks(self, key: str) -> str | None:
         """Why this device has no ``key`` tool setting (None: it has it)."""
@@ -290,12 +290,11 @@ class DeviceProfile:
         """A job's tool ``overrides`` less the settings this device does not have, and one warning
         line for each left out (``where`` names the job's table).  A job describes the sheet and
         the creases, not one machine: a setting another device has is no mistake on this one.
-        Values are still checked first, so a malformed one stays an error."""
+        A malformed value is kept, for :meth:`tool_for` to refuse."""
         kept, warnings = dict(overrides), []
-        for key in [key for key in kept if key in _TOOL_KEYS and self.lacks(key)]:
+        for key in [key for key, value in kept.items()
+                    if key in _TOOL_KEYS and self.lacks(key) and _TOOL_KEYS[key][1](value) is not None]:
             value = kept.pop(key)
-            if _TOOL_KEYS[key][1](value) is None:
-                raise _Reader({}, where).fail(key, _TOOL_KEYS[key][0], value)
             warnings.append(f"{where}.{key} = {value!r} ignored: {self.name} has no {key} setting "
                             f"({self.lacks(key)})")
         return kept, warnings

@@ -103,12 +103,12 @@ def test_export_errors(tmp_path, capsys, args, needles):
 def test_design_too_large_is_a_clear_error_without_output(tmp_path, capsys):
     job = tmp_path / "big.toml"
     shutil.copy(ROOT / "jobs" / "vase-profile.svg", tmp_path)
-    job.write_text((ROOT / "jobs" / "vase-svg.toml").read_text() + '\n[fabrication]\nsheet = "A4"\n')
+    job.write_text((ROOT / "jobs" / "vase-svg.toml").read_text().replace('scale = "fit"', 'scale = 1\nsheet = "A4"'))
     out_dir = tmp_path / "out"
     out_dir.mkdir()
     for command, name in (("export", "x.plt"), ("preview", "x.svg")):
         code, out, err = run(capsys, command, job, "--device", "graphtec-ce6000", "-o", out_dir / name)
-        assert_clean_error(code, out, err, out_dir, "largest scale that fits", "371.4 x 73.9 mm")
+        assert_clean_error(code, out, err, out_dir, "largest scale that fits", "371.4 x 73.9 mm", "--scale fit")
 
 
 def test_bad_fabrication_key_names_the_key(tmp_path, capsys):
