@@ -72,12 +72,11 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
     if rotate_value not in ("auto", True, False):
         table.fail("rotate", f"expected \"auto\", true or false, got {rotate_value!r}")
     rotate = {"auto": "auto", True: "yes", False: "no"}[rotate_value]
-    scale = "fit" if table.get("scale") == "fit" else None
-    if scale is None:
-        if isinstance(table.get("scale"), str):
-            table.fail("scale", f"expected a number > 0 or \"fit\" (the largest scale that fits the sheet), "
-                                f"got {table.get('scale')!r}")
-        scale = table.number("scale", 1.0, exclusive_minimum=0.0)
+    scale = table.get("scale", 1.0)
+    if isinstance(scale, bool) or not (scale == "fit" or isinstance(scale, (int, float))):
+        table.fail("scale", f"expected a number > 0 or \"fit\" (the largest scale that fits the sheet), got {scale!r}")
+    if scale != "fit":
+        scale = table.number("scale", exclusive_minimum=0.0)
     optimize = table.string("optimize", "greedy", choices=METHODS)
     flip_edge = table.string("flip_edge", "left", choices=FLIP_EDGES)
     perforation = dict(defaults.perforation)

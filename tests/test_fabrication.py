@@ -496,7 +496,7 @@ def test_a_design_that_fits_keeps_scale_1_unless_fit_is_asked(device_name):
 
 @pytest.mark.parametrize("value", ["big", "Fit", "", True])
 def test_scale_is_a_number_or_fit(value):
-    with pytest.raises(FoldfabError, match=r'\[fabrication\]\.scale: expected a number'):
+    with pytest.raises(FoldfabError, match=r'\[fabrication\]\.scale: expected a number > 0 or "fit" '):
         parse_fabrication({"scale": value}, "job.toml")
 
 
