@@ -76,7 +76,7 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
     if isinstance(scale, bool) or not (scale == "fit" or isinstance(scale, (int, float))):
         table.fail("scale", f"expected a number > 0 or \"fit\" (the largest scale that fits the sheet), got {scale!r}")
     if scale != "fit":
-        scale = table.number("scale", exclusive_minimum=0.0)
+        scale = table.number("scale", 1.0, exclusive_minimum=0.0)
     optimize = table.string("optimize", "greedy", choices=METHODS)
     flip_edge = table.string("flip_edge", "left", choices=FLIP_EDGES)
     perforation = dict(defaults.perforation)
