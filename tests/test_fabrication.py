@@ -458,8 +458,11 @@ def test_fitted_scale_is_accepted_and_a_hair_more_is_refused(w, h, sheet, reach,
     assert corners.imag.min() >= region[1] - tol and corners.imag.max() <= region[3] + tol
     for turn in {"auto": ["no", "yes"], "yes": ["yes"], "no": ["no"]}[rotate]:  # the better turn
         assert scale >= largest_scale(bounds, region, turn)
-    with pytest.raises(FoldfabError, match="largest scale that fits is .*--scale fit"):
-        fit(bounds, sheet, area, margin, scale * 1.001, rotate)
+    # The check allows 1e-9 mm of rounding: 0.1 % more is refused wherever that is more than 1e-9 mm,
+    # i.e. wherever the placed design is a micrometre or more across (fabricate refuses under ten plotter steps).
+    if min(placement.size) >= 1e-3:
+        with pytest.raises(FoldfabError, match="largest scale that fits is .*--scale fit"):
+            fit(bounds, sheet, area, margin, scale * 1.001, rotate)
 
 
 @pytest.mark.parametrize("device_name", DEVICES)
