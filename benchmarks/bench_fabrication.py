@@ -224,7 +224,7 @@ def export_times() -> None:
             if args[0] == str(vase):
                 job = Path(tmp) / "vase.toml"
                 job.write_text(vase.read_text().replace('"vase-profile.svg"', f'"{ROOT / "jobs" / "vase-profile.svg"}"')
-                               + "\n[fabrication]\nsheet = \"A3\"\nmargin = 5\nscale = 0.7\n")
+                               .replace('scale = "fit"', 'sheet = "A3"\nmargin = 5\nscale = 0.7'))
                 args = [str(job)] + args[1:]
             best = math.inf
             for _ in range(3):

@@ -80,9 +80,10 @@ def _fabricate(args: argparse.Namespace):
 
     device = load_device(args.device)
     design = load_design(args.job, allow_penetration=args.allow_penetration)
-    for warning in design.warnings:
+    fab = fabricate(design, device, scale=getattr(args, "scale", None))
+    for warning in (*design.warnings, *fab.warnings):
         print(f"foldfab: warning: {warning}", file=sys.stderr)
-    return design, device, fabricate(design, device)
+    return design, device, fab
 
 
 def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> None:
@@ -116,6 +117,10 @@ def fabrication_report(fab, device) -> dict:
         "strategy": fab.spec.strategy,
         "sheet_mm": list(fab.plan.sheet),
         "optimize": fab.spec.optimize,
+        "scale": fab.placement.scale,
+        "scale_fitted": fab.spec.scale == "fit",
+        "rotated": fab.placement.rotated,
+        "warnings": list(fab.warnings),
         "layers": {name: {"drawn_mm": round(t.drawn_length, 1), "pen_lifts": t.pen_lifts,
                           "travel_mm": round(t.travel_length, 1), "time_s": round(t.time, 1)}
                    for name, t in times.layers.items()},
@@ -132,7 +137,9 @@ def fabrication_report(fab, device) -> dict:
 
 def format_report(info: dict) -> str:
     """Human-readable fabrication report."""
-    lines = [f"device       {info['device']}  strategy {info['strategy']}  sheet {info['sheet_mm'][0]:g} x {info['sheet_mm'][1]:g} mm"]
+    lines = [f"device       {info['device']}  strategy {info['strategy']}  sheet {info['sheet_mm'][0]:g} x {info['sheet_mm'][1]:g} mm",
+             f"placement    scale {info['scale']:.4g}{' (fitted to the sheet)' if info['scale_fitted'] else ''}"
+             f"{', turned 90 degrees' if info['rotated'] else ''}"]
     for name, layer in info["layers"].items():
         lines.append(f"{name:<12} {layer['drawn_mm']:>9.1f} mm drawn {layer['pen_lifts']:>6} pen lifts "
                      f"{layer['travel_mm']:>9.1f} mm travel {layer['time_s']:>8.1f} s")
@@ -182,6 +189,28 @@ def _add_fabrication_args(parser: argparse.ArgumentParser, output_help: str) -> 
     parser.add_argument("-o", "--output", required=True, metavar="OUT", help=output_help)
     parser.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
+    _add_scale_arg(parser)
+
+
+def _add_scale_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--scale", type=_scale, metavar="S|fit",
+                        help="scale of the design on the sheet instead of the job's [fabrication].scale: a number "
+                             "> 0, or fit: the largest that fits the sheet and the device's reach")
+
+
+def _scale(text: str) -> float | str:
+    """An argparse type: ``fit`` or a finite number > 0."""
+    import math
+
+    if text == "fit":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number > 0 or fit, got {text!r}")
+    return value
 
 
 
@@ -223,6 +252,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if args.preview:
         _check_output(Path(args.preview), "--preview", (".svg",))
     design, device, fab = _fabricate(args)
+    if args.json:
+        for warning in fab.warnings:
+            print(json.dumps({"event": "warning", "message": warning}), flush=True)
     port = args.port or device.port
     if not port:
         raise FoldfabError(f"{device.name} has no port: give --port PORT (a serial port such as /dev/ttyUSB0, "
@@ -283,6 +315,8 @@ def _resume_command(args: argparse.Namespace, port: str, token: str) -> list[str
         if getattr(args, switch) is not None:
             command.append(f"--{switch}" if getattr(args, switch) else f"--no-{switch}")
     command += [f"--{flag.replace('_', '-')}" for flag in ("yes", "json", "allow_penetration") if getattr(args, flag)]
+    if args.scale is not None:  # the same scale makes the same program, which the token is for
+        command += ["--scale", str(args.scale)]
     return command + ["--resume", token]
 
 
@@ -292,7 +326,8 @@ def _write_preview(fab, device, output: Path) -> None:
     from foldfab.interpret import interpret
     from foldfab.preview import render_preview
 
-    write_text(output, render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan))
+    write_text(output, render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan,
+                                      notes=[fab.placement_summary]))
 
 
 def _add_plot_parser(sub) -> None:
@@ -316,6 +351,7 @@ def _add_plot_parser(sub) -> None:
     plot.add_argument("--yes", action="store_true", help="without a terminal, continue at every pause")
     plot.add_argument("--json", action="store_true", help="progress as JSON lines on stdout")
     plot.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
+    _add_scale_arg(plot)
     plot.set_defaults(func=cmd_plot)
 
 # --- foldfab queue ---------------------------------------------------------------------------
@@ -340,7 +376,7 @@ def cmd_queue_add(args: argparse.Namespace) -> int:
 
     new = []
     for job in args.jobs:
-        design, device, fab = _fabricate(argparse.Namespace(job=job, device=args.device,
+        design, device, fab = _fabricate(argparse.Namespace(job=job, device=args.device, scale=args.scale,
                                                             allow_penetration=args.allow_penetration))
         port = args.port or device.port
         if not port:
@@ -610,6 +646,7 @@ def _add_queue_parser(sub) -> None:
     add.add_argument("--priority", type=_int_from(*PRIORITIES, "expected a priority"), default=0, metavar="P",
                      help=f"higher runs first, {PRIORITIES[0]} to {PRIORITIES[1]} (default 0)")
     add.add_argument("--allow-penetration", action="store_true", help="queue a design whose faces intersect")
+    _add_scale_arg(add)
     add.set_defaults(func=cmd_queue_add)
 
     listing = commands.add_parser("list", parents=[common], help="list jobs")

@@ -256,25 +256,48 @@ class DeviceProfile:
         return Frame((ex, ey), corner, self.origin_offset, self.units_per_mm)
 
     def tool_for(
-        self, layer_name: str, overrides: Mapping[str, Any] | None = None, source: str = "job"
+        self, layer_name: str, overrides: Mapping[str, Any] | None = None, source: str = "job",
+        like: str | None = None,
     ) -> Tool:
         """The profile's tool for ``layer_name`` with job ``overrides`` (pen, force, speed, passes).
 
-        ``source`` names where the overrides come from (a job file) in error messages.
+        ``like`` names the profile layer whose settings the overrides start from (default
+        ``layer_name``: perforation dashes start from the cut's); ``source`` names where the
+        overrides come from (a job file) in error messages.
         """
-        if layer_name not in self.layers:
+        like = like or layer_name
+        if like not in self.layers:
             raise FoldfabError(
-                f"{self.source}: no [layers.{layer_name}] table; known layers: "
+                f"{self.source}: no [layers.{like}] table; known layers: "
                 f"{', '.join(self.layers)}; add one to the profile or rename the layer"
             )
-        base = self.layers[layer_name]
+        base = self.layers[like]
         values = {key: getattr(base, key) for key in _TOOL_KEYS}
         reader = _Reader(dict(overrides or {}), source, f"layers.{layer_name}.")
         values.update({key: reader.take(key, *_TOOL_KEYS[key]) for key in _TOOL_KEYS
                        if key in reader.data})
         reader.done()
         _check_tool(self, reader, **values)
-        return Tool(**values)
+        return Tool(**values, pen_down=base.pen_down if like != layer_name else None)
+
+    def lacks(self, key: str) -> str | None:
+        """Why this device has no ``key`` tool setting (None: it has it)."""
+        if key == "force" and not self.language.force:
+            return "its language has no force command"
+        return None
+
+    def supported(self, overrides: Mapping[str, Any], where: str) -> tuple[dict[str, Any], list[str]]:
+        """A job's tool ``overrides`` less the settings this device does not have, and one warning
+        line for each left out (``where`` names the job's table).  A job describes the sheet and
+        the creases, not one machine: a setting another device has is no mistake on this one.
+        A malformed value is kept, for :meth:`tool_for` to refuse."""
+        kept, warnings = dict(overrides), []
+        for key in [key for key, value in kept.items()
+                    if key in _TOOL_KEYS and self.lacks(key) and _TOOL_KEYS[key][1](value) is not None]:
+            value = kept.pop(key)
+            warnings.append(f"{where}.{key} = {value!r} ignored: {self.name} has no {key} setting "
+                            f"({self.lacks(key)})")
+        return kept, warnings
 
     def check_tool(self, tool: Tool, where: str) -> None:
         """Raise FoldfabError unless this device can use ``tool`` (``where`` names the step)."""
@@ -469,11 +492,9 @@ _PEN_POSITION = 'a Z height in mm (number) or a servo command like "M3 S30" or "
 def _check_tool(device, reader: _Reader, pen, force, speed, passes) -> None:
     """Check tool values against what the device's language and limits accept."""
     language = device.language
-    if force is not None and not language.force:
-        raise reader.fail(
-            "force", "no force (this device's language has no force command)", force,
-            "remove it" + ("; set the depth with pen_down" if device.protocol == "gcode" else ""),
-        )
+    if force is not None and device.lacks("force"):
+        raise reader.fail("force", f"no force ({device.lacks('force')})", force,
+                          "remove it" + ("; set the depth with pen_down" if device.protocol == "gcode" else ""))
     for key, value, step, unit in (
         ("force", force, language.force_step, "force units"),
         ("speed", speed, language.speed_step, "mm/s"),

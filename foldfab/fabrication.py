@@ -10,7 +10,7 @@ scored.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
@@ -20,7 +20,7 @@ from foldfab.design import Design
 from foldfab.devices import DeviceProfile, parse_sheet
 from foldfab.errors import FoldfabError
 from foldfab.job import TomlTable
-from foldfab.plan import Pass, Pause, PlotPlan
+from foldfab.plan import Pass, Pause, PlotPlan, Tool
 
 STRATEGIES = ("force", "perforate", "two-sided")
 LAYERS = {"valley": (1, "#0000ff"), "mountain": (2, "#ff0000"), "cut": (3, "#000000")}
@@ -37,7 +37,7 @@ class FabricationSpec:
     sheet: tuple[float, float] | None = None     # None: the device's default sheet
     margin: float = 10.0
     rotate: str = "auto"                          # auto | yes | no
-    scale: float = 1.0
+    scale: float | str = 1.0                      # a number > 0, or "fit": the largest that fits
     optimize: str = "greedy"                      # none | greedy | two-opt
     flip_edge: str = "left"
     perforation: dict[str, tuple[float, ...]] = field(
@@ -72,7 +72,11 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
     if rotate_value not in ("auto", True, False):
         table.fail("rotate", f"expected \"auto\", true or false, got {rotate_value!r}")
     rotate = {"auto": "auto", True: "yes", False: "no"}[rotate_value]
-    scale = table.number("scale", 1.0, exclusive_minimum=0.0)
+    scale = table.get("scale", 1.0)
+    if isinstance(scale, bool) or not (scale == "fit" or isinstance(scale, (int, float))):
+        table.fail("scale", f"expected a number > 0 or \"fit\" (the largest scale that fits the sheet), got {scale!r}")
+    if scale != "fit":
+        scale = table.number("scale", 1.0, exclusive_minimum=0.0)
     optimize = table.string("optimize", "greedy", choices=METHODS)
     flip_edge = table.string("flip_edge", "left", choices=FLIP_EDGES)
     perforation = dict(defaults.perforation)
@@ -112,8 +116,12 @@ def flip_message(spec: FabricationSpec, device: DeviceProfile) -> str:
 
 
 def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
-    """Where ``design`` goes on the sheet: (placement, sheet size); a design that does not fit is an error."""
-    from foldfab.placement import fit
+    """Where ``design`` goes on the sheet: (placement, sheet size); a design that does not fit is an error.
+
+    ``spec.scale`` "fit" is the largest scale at which the design fits the sheet less its margin,
+    within the device's reach (on both sides of a two-sided job's sheet), turned if that fits
+    better: computed from the extents, then placed and checked like any given scale."""
+    from foldfab.placement import fit, largest_scale, usable
 
     sheet = spec.sheet or device.sheet
     area = device.frame(sheet).device_rect_on_sheet(*device.plottable_area)
@@ -124,13 +132,16 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
         if spec.strategy == "two-sided":
             area = both_sides(area, sheet, spec.flip_edge)
             reach += f" on both sides of the sheet (flipped {FLIPS[spec.flip_edge]})"
-        placement = fit(bounds, sheet, area, spec.margin, spec.scale, spec.rotate, reach)
+        scale = spec.scale
+        if scale == "fit":
+            scale = largest_scale(bounds, usable(sheet, area, spec.margin, reach), spec.rotate)
+        placement = fit(bounds, sheet, area, spec.margin, scale, spec.rotate, reach)
     except FoldfabError as exc:
         raise FoldfabError(f"{design.job.path}: {device.name}: {exc}") from None
     width, height = placement.size
     if min(width, height) < SMALLEST_STEPS * device.resolution:
         raise FoldfabError(
-            f"{design.job.path}: {device.name}: the design is {width:.3g} x {height:.3g} mm at scale {spec.scale:g}, "
+            f"{design.job.path}: {device.name}: the design is {width:.3g} x {height:.3g} mm at scale {placement.scale:g}, "
             f"under {SMALLEST_STEPS} of the device's steps ({device.resolution:g} mm) across, so its creases would run "
             "together; set a larger [fabrication].scale (1 is the design's own size)")
     return placement, sheet
@@ -180,11 +191,32 @@ def build_plan(design: Design, device: DeviceProfile, spec: FabricationSpec | No
     if spec is None:
         spec = parse_fabrication(design.job.fabrication, str(design.job.path))
     placement, sheet = place(design, device, spec)
-    return finish_plan(lay_out(design, device, spec, placement, sheet), device, spec)
+    tools, _ = layer_tools(design, device, spec)
+    return finish_plan(lay_out(design, device, spec, placement, sheet, tools), device, spec)
 
 
-def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placement, sheet) -> PlotPlan:
-    """The layers of ``design`` placed on the sheet, creases chained, in crease-pattern order."""
+def layer_tools(design: Design, device: DeviceProfile,
+                spec: FabricationSpec) -> tuple[dict[str, Tool], list[str]]:
+    """The tool of each layer, and a warning line for each job setting the device does not have.
+
+    Perforation dashes are cuts: with the perforate strategy the valley and mountain passes
+    start from the profile's cut settings, and ``[fabrication.layers.valley]`` etc. override them.
+    """
+    source = f"{design.job.path}: [fabrication.layers]"
+    tools, warnings = {}, []
+    for name in LAYERS:
+        overrides, ignored = device.supported(spec.layers.get(name, {}),
+                                              f"{design.job.path}: [fabrication.layers.{name}]")
+        warnings += ignored
+        like = "cut" if spec.strategy == "perforate" else name
+        tools[name] = device.tool_for(name, overrides, source, like=like)
+    return tools, warnings
+
+
+def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placement, sheet,
+            tools: dict[str, Tool]) -> PlotPlan:
+    """The layers of ``design`` placed on the sheet, creases chained, in crease-pattern order,
+    each drawn with its tool of ``tools`` (:func:`layer_tools`)."""
     import vpype as vp
 
     from foldfab import scoring
@@ -203,14 +235,13 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
     doc = vp.Document()
     doc.page_size = sheet
     steps: list = []
-    source = f"{design.job.path}: [fabrication.layers]"
     for name, (layer_id, colour) in LAYERS.items():
         if spec.strategy == "two-sided" and name == "mountain":
             steps.append(Pause(flip_message(spec, device)))
         doc.add(lines[name], layer_id)
         doc.layers[layer_id].set_property("vp_name", name)
         doc.layers[layer_id].set_property("vp_color", vp.Color(colour))
-        steps.append(Pass(layer_id, name, device.tool_for(name, spec.layers.get(name), source)))
+        steps.append(Pass(layer_id, name, tools[name]))
     return PlotPlan(doc, steps, sheet)
 
 
@@ -258,6 +289,13 @@ class Fabrication:
     design: Design
     device: DeviceProfile
     layout: PlotPlan        # the plan before optimization (for the travel it saves)
+    warnings: tuple[str, ...] = ()   # job settings the device does not have, ignored
+
+    @property
+    def placement_summary(self) -> str:
+        """The scale the design is drawn at and whether it is turned, as the report and preview say it."""
+        fitted = " (fitted to the sheet)" if self.spec.scale == "fit" else ""
+        return f"scale {self.placement.scale:.4g}{fitted}" + (", turned 90 degrees" if self.placement.rotated else "")
 
     @cached_property
     def travel_after(self) -> dict:
@@ -277,16 +315,22 @@ class Fabrication:
         return travel(unoptimized, park_position(self.device, self.plan.sheet), self.device.tool_changer)
 
 
-def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None) -> Fabrication:
-    """Plan, optimize and write the program of ``design`` for ``device``."""
+def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None,
+              scale: float | str | None = None) -> Fabrication:
+    """Plan, optimize and write the program of ``design`` for ``device``; ``scale`` (a number
+    or "fit", the command line's ``--scale``) replaces the job's ``[fabrication].scale``."""
     from foldfab.program import write_program
 
     if spec is None:
         spec = parse_fabrication(design.job.fabrication, str(design.job.path))
+    if scale is not None:
+        spec = replace(spec, scale=scale)
     placement, sheet = place(design, device, spec)
-    layout = lay_out(design, device, spec, placement, sheet)
+    tools, warnings = layer_tools(design, device, spec)
+    layout = lay_out(design, device, spec, placement, sheet, tools)
     plan = finish_plan(layout, device, spec)
-    return Fabrication(spec, placement, plan, write_program(plan, device), design, device, layout)
+    return Fabrication(spec, placement, plan, write_program(plan, device), design, device, layout,
+                       tuple(warnings))
 
 
 def park_position(device: DeviceProfile, sheet: tuple[float, float]) -> complex:

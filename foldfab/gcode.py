@@ -139,7 +139,7 @@ class _GcodeWriter:
                 f"table to say how deep the tool goes (known: {', '.join(self.device.layers)}); "
                 f"add one to {self.device.source} or rename the pass"
             )
-        down = self.device.layers[sweep.name].pen_down
+        down = sweep.tool.pen_down if sweep.tool.pen_down is not None else self.device.layers[sweep.name].pen_down
         feed = sweep.tool.speed * 60
         words = _xy_words(np.concatenate(sweep.lines)) if sweep.lines else []
         start = 0

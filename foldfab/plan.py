@@ -32,6 +32,9 @@ class Tool:
     """Drawing speed in mm/s."""
     passes: int = 1
     """Each line of the layer is drawn this many times (the whole layer is repeated)."""
+    pen_down: float | str | None = None
+    """G-code: the depth of the profile layer this pass borrows its tool from (perforation dashes
+    cut at the cut's depth); None: the depth of the pass's own layer."""
 
 
 @dataclass(frozen=True)

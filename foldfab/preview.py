@@ -11,6 +11,7 @@ Units are millimetres (``viewBox`` in mm); the output is deterministic.
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 from xml.sax.saxutils import escape, quoteattr
 
@@ -28,13 +29,15 @@ MARGIN, FONT, LINE = 10.0, 4.0, 6.0
 
 
 def render_preview(interpretation: Interpretation, device: DeviceProfile,
-                   plan_or_sheet: PlotPlan | tuple[float, float]) -> str:
-    """SVG text previewing ``interpretation`` on ``device`` for this plan's (or size's) sheet."""
+                   plan_or_sheet: PlotPlan | tuple[float, float], notes: Sequence[str] = ()) -> str:
+    """SVG text previewing ``interpretation`` on ``device`` for this plan's (or size's) sheet;
+    ``notes`` are more legend lines after the device's (the scale the design is drawn at)."""
     sheet = plan_or_sheet.sheet if isinstance(plan_or_sheet, PlotPlan) else plan_or_sheet
     width, height = sheet
     times = estimate(interpretation, device)
     wrap = max(20, int((width + 2 * MARGIN) / (FONT * 0.55)))
     legend: list[tuple[str | None, str]] = [(None, f"{device.name}: {device.model}")]
+    legend += [(None, note) for note in notes]
     for name, stats in times.layers.items():
         legend.append((COLORS.get(name, OTHER_COLOR),
                        f"{name}: {stats.drawn_length:.0f} mm drawn, {stats.pen_lifts} pen lift{'' if stats.pen_lifts == 1 else 's'}, "

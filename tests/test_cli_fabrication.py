@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -103,12 +104,12 @@ def test_export_errors(tmp_path, capsys, args, needles):
 def test_design_too_large_is_a_clear_error_without_output(tmp_path, capsys):
     job = tmp_path / "big.toml"
     shutil.copy(ROOT / "jobs" / "vase-profile.svg", tmp_path)
-    job.write_text((ROOT / "jobs" / "vase-svg.toml").read_text() + '\n[fabrication]\nsheet = "A4"\n')
+    job.write_text((ROOT / "jobs" / "vase-svg.toml").read_text().replace('scale = "fit"', 'scale = 1\nsheet = "A4"'))
     out_dir = tmp_path / "out"
     out_dir.mkdir()
     for command, name in (("export", "x.plt"), ("preview", "x.svg")):
         code, out, err = run(capsys, command, job, "--device", "graphtec-ce6000", "-o", out_dir / name)
-        assert_clean_error(code, out, err, out_dir, "largest scale that fits", "371.4 x 73.9 mm")
+        assert_clean_error(code, out, err, out_dir, "largest scale that fits", "371.4 x 73.9 mm", "--scale fit")
 
 
 def test_bad_fabrication_key_names_the_key(tmp_path, capsys):
@@ -125,3 +126,87 @@ def test_export_exit_code_in_a_real_process(tmp_path):
                              "-o", str(tmp_path / "x.plt")], capture_output=True, text=True)
     assert result.returncode == 2 and "Traceback" not in result.stderr and "nowhere" in result.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+JOBS = sorted((ROOT / "jobs").glob("*.toml"))
+DEVICE_FILES = sorted((ROOT / "devices").glob("*.toml"))
+
+
+@pytest.mark.parametrize("device", [p.stem for p in DEVICE_FILES])
+@pytest.mark.parametrize("job", JOBS, ids=[p.stem for p in JOBS])
+def test_every_example_job_exports_previews_and_plots_on_every_device(tmp_path, capsys, monkeypatch, job, device):
+    """Every job in jobs/ on every profile in devices/, with no option but --device (and --port)."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    suffix = ".gcode" if load_device(device).protocol == "gcode" else ".plt"
+    code, out, err = run(capsys, "export", job, "--device", device, "-o", tmp_path / f"x{suffix}")
+    assert code == 0 and "foldfab: error" not in err, err
+    assert (tmp_path / f"x{suffix}").stat().st_size > 0 and "placement    scale " in out
+    code, out, err = run(capsys, "preview", job, "--device", device, "-o", tmp_path / "x.svg")
+    assert code == 0, err
+    assert "scale " in (tmp_path / "x.svg").read_text()
+    code, out, err = run(capsys, "plot", job, "--device", device, "--port", "sim://?time=instant")
+    assert code == 0, err
+
+
+def test_scale_fit_on_the_command_line_is_reported_and_previewed(tmp_path, capsys):
+    code, out, err = run(capsys, "export", HEXAGON, "--device", "roland-gx24", "-o", tmp_path / "x.plt", "--scale", "fit")
+    assert code == 0, err
+    fitted = float(re.search(r"^placement    scale ([\d.]+) \(fitted to the sheet\)", out, re.M)[1])
+    assert fitted > 1
+    code, out, err = run(capsys, "preview", HEXAGON, "--device", "roland-gx24", "-o", tmp_path / "x.svg",
+                         "--scale", "fit", "--json")
+    report = json.loads(out)
+    assert code == 0 and report["scale_fitted"] and report["scale"] == pytest.approx(fitted, rel=1e-3)
+    assert f"scale {fitted:g} (fitted to the sheet)" in (tmp_path / "x.svg").read_text()
+    code, out, err = run(capsys, "export", HEXAGON, "--device", "roland-gx24", "-o", tmp_path / "x.plt", "--json",
+                         "--scale", "0.5")
+    assert code == 0 and json.loads(out)["scale"] == 0.5 and not json.loads(out)["scale_fitted"]
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "inf", "big", "FIT"])
+def test_a_bad_scale_option_is_a_usage_error(tmp_path, capsys, value):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["export", str(HEXAGON), "--device", "grbl", "-o", str(tmp_path / "x.gcode"), "--scale", value])
+    assert exit_info.value.code == 2
+    assert "--scale: expected a number > 0 or fit" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_layer_setting_the_device_lacks_is_one_warning_line(tmp_path, capsys, monkeypatch):
+    """force = 18 on a plotter without a force command: exported with one warning on stderr,
+    and a warnings field in the JSON report and the JSON progress."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    job = tmp_path / "job.toml"
+    job.write_text(HEXAGON.read_text() + "\n[fabrication.layers.valley]\nforce = 18\n")
+    code, out, err = run(capsys, "export", job, "--device", "hp7475a", "-o", tmp_path / "x.hpgl")
+    warning = (f"foldfab: warning: {job}: [fabrication.layers.valley].force = 18 ignored: hp7475a has no force "
+               "setting (its language has no force command)")
+    assert code == 0 and err.splitlines() == [warning]
+    assert "FS" not in (tmp_path / "x.hpgl").read_text()
+    code, out, err = run(capsys, "preview", job, "--device", "hp7475a", "-o", tmp_path / "x.svg", "--json")
+    assert code == 0 and json.loads(out)["warnings"] == [warning.removeprefix("foldfab: warning: ")]
+    code, out, err = run(capsys, "plot", job, "--device", "hp7475a", "--port", "sim://?time=instant", "--json")
+    events = [json.loads(line) for line in out.splitlines()]
+    assert code == 0 and events[0] == {"event": "warning", "message": warning.removeprefix("foldfab: warning: ")}
+    assert err.splitlines() == [warning]
+    code, out, err = run(capsys, "export", job, "--device", "graphtec-ce6000", "-o", tmp_path / "x.plt", "--json")
+    assert code == 0 and err == "" and json.loads(out)["warnings"] == []
+
+
+def test_queue_add_and_the_resume_command_keep_the_scale(tmp_path, capsys):
+    """A queued job is built at the --scale given; a stopped plot's resume command repeats it,
+    since the resume token belongs to the program that scale makes."""
+    from foldfab.cli import _resume_command, build_parser
+
+    code, out, err = run(capsys, "export", HEXAGON, "--device", "grbl", "-o", tmp_path / "x.gcode", "--scale", "fit")
+    assert code == 0, err
+    queue = tmp_path / "q.sqlite3"
+    code, out, err = run(capsys, "queue", "add", HEXAGON, "--device", "grbl", "--port", "sim://", "--queue", queue,
+                         "--scale", "fit")
+    assert code == 0, err
+    code, out, err = run(capsys, "queue", "list", "--queue", queue, "--json")
+    assert json.loads(out)[0]["program_bytes"] == (tmp_path / "x.gcode").stat().st_size
+    args = build_parser().parse_args(["plot", str(HEXAGON), "--device", "grbl", "--scale", "0.75"])
+    assert _resume_command(args, "sim://", "T")[-4:] == ["--scale", "0.75", "--resume", "T"]
+    args = build_parser().parse_args(["plot", str(HEXAGON), "--device", "grbl"])
+    assert "--scale" not in _resume_command(args, "sim://", "T")

@@ -193,3 +193,32 @@ def test_a_profile_that_is_not_utf8_is_a_clear_error(tmp_path):
         load_device(str(path))
     path.write_bytes(b"\xef\xbb\xbf" + Path(load_device("grbl").source).read_bytes())  # a byte-order mark is fine
     assert load_device(str(path)).name == "grbl"
+
+
+@pytest.mark.parametrize("name", ["hp7475a", "grbl", "graphtec-ce6000"])
+def test_a_job_setting_the_device_lacks_is_left_out_with_a_warning(name):
+    """A job's [fabrication.layers] describes the creases, not one machine: force on a device
+    without a force command is dropped with one line naming the setting and the device."""
+    device = load_device(name)
+    where = "jobs/box.toml: [fabrication.layers.valley]"
+    kept, warnings = device.supported({"force": 18, "speed": 20}, where)
+    if device.language.force:
+        assert (kept, warnings) == ({"force": 18, "speed": 20}, [])
+    else:
+        assert kept == {"speed": 20}
+        assert warnings == [f"{where}.force = 18 ignored: {name} has no force setting "
+                            "(its language has no force command)"]
+    kept, warnings = device.supported({"force": "hard"}, where)  # malformed: left for tool_for to refuse
+    assert kept == {"force": "hard"} and warnings == []
+    with pytest.raises(FoldfabError, match="layers.valley.force': expected a number"):
+        device.tool_for("valley", kept, where)
+
+
+def test_a_tool_can_start_from_another_layer():
+    """Perforation dashes start from the cut's settings (G-code: its depth too)."""
+    graphtec = load_device("graphtec-ce6000")
+    assert graphtec.tool_for("valley", like="cut") == graphtec.tool_for("cut")
+    assert graphtec.tool_for("valley", {"speed": 20}, like="cut") == Tool(1, 18.0, 20.0, 1)
+    grbl = load_device("grbl")
+    assert grbl.tool_for("valley", like="cut").pen_down == grbl.layers["cut"].pen_down == -1.0
+    assert grbl.tool_for("valley").pen_down is None  # its own layer's depth

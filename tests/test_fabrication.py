@@ -423,3 +423,132 @@ def test_a_sheet_out_of_reach_either_way_suggests_no_flip(flip):
         fabricate(design, device, parse_fabrication(table, "star"))
     assert "flipped either way the sheet is not reached on both sides" in str(error.value)
     assert "flip_edge =" not in str(error.value)
+
+
+# --- scale = "fit" -----------------------------------------------------------------------------
+
+@settings(max_examples=300, deadline=None)
+@given(w=st.floats(0.5, 3000), h=st.floats(0.5, 3000), sheet=st.tuples(st.floats(20, 2000), st.floats(20, 2000)),
+       reach=st.tuples(st.floats(-50, 500), st.floats(-50, 500), st.floats(10, 2500), st.floats(10, 2500)),
+       margin=st.floats(0, 40), rotate=st.sampled_from(["auto", "yes", "no"]),
+       flip=st.sampled_from([None, "left", "top"]))
+def test_fitted_scale_is_accepted_and_a_hair_more_is_refused(w, h, sheet, reach, margin, rotate, flip):
+    """For any design extent, sheet, device reach, margin, turn and (two-sided) flip, the fitted
+    scale passes the same placement check as a given scale, lands inside the usable region, is
+    the better of the two turns, and 1.001 times it is refused."""
+    from foldfab.fabrication import both_sides
+    from foldfab.placement import fit, largest_scale, usable
+
+    bounds = (complex(-w / 3, 7.0), complex(2 * w / 3, 7.0 + h))
+    area = (reach[0], reach[1], reach[0] + reach[2], reach[1] + reach[3])
+    try:
+        if flip:
+            area = both_sides(area, sheet, flip)
+        region = usable(sheet, area, margin)
+    except FoldfabError as exc:
+        assert "leaves no room" in str(exc) or "no part of the sheet is reached on both sides" in str(exc)
+        return
+    scale = largest_scale(bounds, region, rotate)
+    placement = fit(bounds, sheet, area, margin, scale, rotate)
+    assert placement.scale == scale
+    corners = placement.apply(np.array([bounds[0], bounds[1], complex(bounds[0].real, bounds[1].imag),
+                                        complex(bounds[1].real, bounds[0].imag)]))
+    tol = 1e-9 * max(1.0, *sheet)
+    assert corners.real.min() >= region[0] - tol and corners.real.max() <= region[2] + tol
+    assert corners.imag.min() >= region[1] - tol and corners.imag.max() <= region[3] + tol
+    for turn in {"auto": ["no", "yes"], "yes": ["yes"], "no": ["no"]}[rotate]:  # the better turn
+        assert scale >= largest_scale(bounds, region, turn)
+    # The check allows 1e-9 mm of rounding: 0.1 % more is refused wherever that is more than 1e-9 mm,
+    # i.e. wherever the placed design is a micrometre or more across (fabricate refuses under ten plotter steps).
+    if min(placement.size) >= 1e-3:
+        with pytest.raises(FoldfabError, match="largest scale that fits is .*--scale fit"):
+            fit(bounds, sheet, area, margin, scale * 1.001, rotate)
+
+
+@pytest.mark.parametrize("device_name", DEVICES)
+@pytest.mark.parametrize("strategy, flip", [("force", "left"), ("two-sided", "left"), ("two-sided", "top")])
+def test_fit_places_the_design_at_the_largest_scale_the_device_takes(device_name, strategy, flip):
+    """End to end: with scale = "fit" the plan of a job (its glue tab included) fills the usable
+    region along one side, within the device's reach on both sides of a two-sided sheet; the
+    fitted scale times 1.001 is refused by the same check."""
+    design = load_design(ROOT / "jobs" / "vase-svg.toml")  # it has a glue tab
+    device = load_device(device_name)
+    table = {"strategy": strategy, "flip_edge": flip, "scale": "fit", "margin": 7}
+    fab = fabricate(design, device, parse_fabrication(table, "vase"))
+    assert fab.spec.scale == "fit" and "fitted to the sheet" in fab.placement_summary
+    x0, y0, x1, y1 = device.frame(fab.plan.sheet).device_rect_on_sheet(*device.plottable_area)
+    run = interpret(fab.program, device, fab.plan.sheet)
+    points = np.concatenate([s.points for s in run.strokes])
+    tol = 2 * device.resolution
+    assert points[:, 0].min() >= max(7, x0) - tol and points[:, 1].min() >= max(7, y0) - tol
+    assert points[:, 0].max() <= min(fab.plan.sheet[0] - 7, x1) + tol
+    assert points[:, 1].max() <= min(fab.plan.sheet[1] - 7, y1) + tol
+    with pytest.raises(FoldfabError, match="largest scale"):
+        fabricate(design, device, parse_fabrication(dict(table, scale=fab.placement.scale * 1.001), "vase"))
+
+
+@pytest.mark.parametrize("device_name", DEVICES)
+def test_a_design_that_fits_keeps_scale_1_unless_fit_is_asked(device_name):
+    design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
+    device = load_device(device_name)
+    assert fabricate(design, device).placement.scale == 1.0
+    fitted = fabricate(design, device, scale="fit")
+    assert fitted.placement.scale > 1.0 and fitted.placement_summary.startswith("scale ")
+    assert fabricate(design, device, scale=0.5).placement.scale == 0.5
+
+
+@pytest.mark.parametrize("value", ["big", "Fit", "", True])
+def test_scale_is_a_number_or_fit(value):
+    with pytest.raises(FoldfabError, match=r'\[fabrication\]\.scale: expected a number > 0 or "fit" '):
+        parse_fabrication({"scale": value}, "job.toml")
+
+
+# --- perforation dashes are cuts ----------------------------------------------------------------
+
+@pytest.mark.parametrize("device_name", DEVICES)
+def test_perforation_dashes_take_the_cut_tool_in_the_emitted_program(device_name):
+    """Read back from the program: every dash has the cut's pen, force, speed and (G-code) depth,
+    so it cuts through; a job's [fabrication.layers.valley] still sets the valley dashes."""
+    design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
+    device = load_device(device_name)
+    cut = device.layers["cut"]
+
+    def tools(run, layer):
+        return {(s.pen, s.force, s.speed, s.pen_down) for s in run.strokes if s.layer == layer}
+    fab = fabricate(design, device, spec(strategy="perforate"))
+    run = interpret(fab.program, device, fab.plan.sheet)
+    pen = None if device.protocol == "gcode" else cut.pen
+    expected = {(pen, cut.force, cut.speed, cut.pen_down)}
+    assert tools(run, "valley") == tools(run, "mountain") == tools(run, "cut") == expected
+    assert len([s for s in run.strokes if s.layer == "valley"]) > 10  # dashes, not whole creases
+
+    slow = 20.0 if device.dialect in ("graphtec", "roland") else 12.5
+    fab = fabricate(design, device, spec(strategy="perforate", layers={"valley": {"speed": slow}}))
+    run = interpret(fab.program, device, fab.plan.sheet)
+    assert tools(run, "valley") == {(pen, cut.force, slow, cut.pen_down)}
+    assert tools(run, "mountain") == expected
+
+
+# --- layer settings a device does not have ------------------------------------------------------
+
+@pytest.mark.parametrize("device_name", DEVICES)
+def test_a_layer_setting_the_device_lacks_is_ignored_with_one_warning(device_name):
+    design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
+    device = load_device(device_name)
+    fab = fabricate(design, device, spec(layers={"valley": {"force": 30, "passes": 2}}))
+    run = interpret(fab.program, device, fab.plan.sheet)
+    valley = [s for s in run.strokes if s.layer == "valley"]
+    if device.language.force:  # in both force ranges; out of the device's range stays an error
+        assert fab.warnings == () and {s.force for s in valley} == {30}
+        with pytest.raises(FoldfabError, match=r"layers\.valley\.force': expected a value in .*\[limits\] of"):
+            fabricate(design, device, spec(layers={"valley": {"force": 300}}))
+    else:
+        assert len(fab.warnings) == 1
+        assert re.fullmatch(rf".*hexagon-fig8a\.toml: \[fabrication\.layers\.valley\]\.force = 30 ignored: {device_name} has no "
+                            r"force setting \(its language has no force command\)", fab.warnings[0])
+        assert {s.force for s in valley} == {None}
+    assert fab.plan.steps[0].tool.passes == 2  # the settings the device has still apply
+    with pytest.raises(FoldfabError, match=r"layers\.valley\.force.*expected a number"):  # malformed: still an error
+        fabricate(design, device, spec(layers={"valley": {"force": "hard"}}))
+    with pytest.raises(FoldfabError, match=r"layers\.valley\.passes"):  # out of every device's range
+        fabricate(design, device, spec(layers={"valley": {"passes": 0}}))

@@ -119,7 +119,7 @@ def test_ctrl_c_stops_safely_exits_130_and_prints_the_resume_command(sig, tmp_pa
     env = dict(os.environ, XDG_STATE_HOME=str(tmp_path / "state"))
     job = tmp_path / "vase.toml"  # a long job: it is still plotting when Ctrl-C comes
     job.write_text((ROOT / "jobs/vase-svg.toml").read_text().replace(
-        "vase-profile.svg", str(ROOT / "jobs/vase-profile.svg")) + "\n[fabrication]\nscale = 0.7\n")
+        "vase-profile.svg", str(ROOT / "jobs/vase-profile.svg")).replace('scale = "fit"', "scale = 0.7"))
     proc = subprocess.Popen([sys.executable, "-m", "foldfab", "plot", str(job), "--device", "hp7475a",
                              "--port", "sim://?time=fast"], cwd=ROOT, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)

@@ -612,7 +612,7 @@ def test_snapshot_does_not_change_when_the_job_and_its_svg_change(tmp_path, caps
     folder.mkdir()
     shutil.copy(ROOT / "jobs" / "vase-profile.svg", folder)
     job = folder / "vase.toml"
-    job.write_text((ROOT / "jobs" / "vase-svg.toml").read_text() + "\n[fabrication]\nsheet = \"A3\"\nscale = 0.5\n")
+    job.write_text((ROOT / "jobs" / "vase-svg.toml").read_text().replace('scale = "fit"', 'sheet = "A3"\nscale = 0.5'))
     queue = tmp_path / "q.sqlite3"
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
