@@ -8,6 +8,7 @@ import http.client
 import json
 import shutil
 import socket
+import struct
 import threading
 import time
 from pathlib import Path
@@ -502,6 +503,21 @@ def test_a_refused_request_is_answered_then_closed_even_before_its_body_arrives(
     assert reply.startswith(b"HTTP/1.1 403 ")
 
 
+@pytest.mark.parametrize("headers", ["X-A: b\r\n c\r\n{host}", " {host}", "Host : {port}\r\n{host}",
+                                     "X: y\r\nbad line\r\n{host}", "{host}\r\nX-\x00: 1"])
+def test_malformed_header_lines_are_refused(server, headers):
+    host = f"Host: 127.0.0.1:{server.server_address[1]}"
+    data = f"GET / HTTP/1.1\r\n{headers.format(host=host, port=server.server_address[1])}\r\n\r\n"
+    answered = responses(exchange(server, data.encode("latin-1") + raw_request(server, "GET", "/")))
+    assert [s for s, _, _ in answered] == [400] and server.token.encode() not in answered[0][2]
+
+
+def test_an_absolute_request_target_is_refused(server):
+    port = server.server_address[1]
+    data = raw_request(server, "GET", f"http://127.0.0.1:{port}/") + raw_request(server, "GET", "/")
+    assert [s for s, _, _ in responses(exchange(server, data))] == [400]
+
+
 def test_a_foreign_origin_or_site_cannot_post(server, hexagon):
     body = json.dumps({"job": hexagon}).encode()
     token = {"Content-Type": "application/json", "X-Foldfab-Token": server.token}
@@ -574,6 +590,18 @@ def test_connections_beyond_the_cap_get_503(studio):
         while (status := responses(exchange(server, raw_request(server, "GET", "/")))[0][0]) == 503:
             assert time.monotonic() < deadline, "a freed connection slot was never reused"
         assert status == 200
+
+
+def test_a_client_that_resets_is_no_traceback(studio, capfd):
+    with serving(StudioServer(studio, max_connections=1)) as server:
+        with socket.create_connection(("127.0.0.1", server.server_address[1]), timeout=20) as sock:
+            sock.sendall(b"GET / HTTP/1.1\r\nHo")
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))  # close = reset
+        deadline = time.monotonic() + 20  # its one slot is free again once the reset was handled
+        while (status := responses(exchange(server, raw_request(server, "GET", "/")))[0][0]) == 503:
+            assert time.monotonic() < deadline, "the reset connection was never let go"
+        assert status == 200
+    assert "Traceback" not in capfd.readouterr().err
 
 
 def test_a_burst_of_connections_waits_in_the_backlog(studio):

@@ -424,7 +424,8 @@ ATTACK = """async ({token, studio, save}) => {
 def test_a_page_of_another_origin_cannot_use_the_studio(folder, server):
     """DNS rebinding: a page served as evil.example, whose name then resolves to 127.0.0.1, tries to read
     the page (and its token) and to save a file: directly, by smuggling requests in refused requests'
-    bodies, and (handed the token, to test the origin checks alone) by the API itself."""
+    bodies, and, handed the token, by the API itself (refused for its Host, and cross-origin by the
+    browser's preflight, which the studio does not answer)."""
     from playwright.sync_api import sync_playwright
 
     port = server.server_address[1]
