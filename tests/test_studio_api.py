@@ -567,7 +567,7 @@ def test_a_slow_or_idle_client_times_out(studio):
                                                                    length="10")):
             with socket.create_connection(("127.0.0.1", server.server_address[1]), timeout=20) as sock:
                 sock.sendall(data)
-                assert sock.makefile("rb").read() in (b"", ), "the server closes a connection whose request stalls"
+                assert sock.makefile("rb").read() == b"", "the server closes a connection whose request stalls"
         with socket.create_connection(("127.0.0.1", server.server_address[1]), timeout=20) as sock:
             sock.sendall(raw_request(server, "GET", "/api/state", token=server.token))
             reader = sock.makefile("rb")
