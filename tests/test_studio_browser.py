@@ -30,7 +30,8 @@ JOBS = Path(__file__).resolve().parent.parent / "jobs"
 
 
 @pytest.fixture(scope="module")
-def browser():
+def playwright():
+    """Playwright, once per module (its sync API runs one instance per thread)."""
     if not CHROMIUM.is_file():
         pytest.fail(f"Chromium not found at {CHROMIUM}: install it (Debian: apt-get install -y chromium); "
                     "the studio's browser tests need it and do not skip", pytrace=False)
@@ -40,11 +41,16 @@ def browser():
         pytest.fail("Playwright is not installed: pip install playwright (its own browser download is not "
                     "needed: the tests use /usr/bin/chromium)", pytrace=False)
     with sync_playwright() as playwright:
-        chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, timeout=TIMEOUT_MS)
-        try:
-            yield chromium
-        finally:
-            chromium.close()
+        yield playwright
+
+
+@pytest.fixture(scope="module")
+def browser(playwright):
+    chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, timeout=TIMEOUT_MS)
+    try:
+        yield chromium
+    finally:
+        chromium.close()
 
 
 @pytest.fixture
@@ -421,13 +427,11 @@ ATTACK = """async ({token, studio, save}) => {
 }"""
 
 
-def test_a_page_of_another_origin_cannot_use_the_studio(folder, server):
+def test_a_page_of_another_origin_cannot_use_the_studio(playwright, folder, server):
     """DNS rebinding: a page served as evil.example, whose name then resolves to 127.0.0.1, tries to read
     the page (and its token) and to save a file: directly, by smuggling requests in refused requests'
     bodies, and, handed the token, by the API itself (refused for its Host, and cross-origin by the
     browser's preflight, which the studio does not answer)."""
-    from playwright.sync_api import sync_playwright
-
     port = server.server_address[1]
     evil = f"http://evil.example:{port}"
     hexagon = job_data(load_job(folder / "hexagon.toml"))
@@ -436,19 +440,18 @@ def test_a_page_of_another_origin_cannot_use_the_studio(folder, server):
     rebinding = ["--host-resolver-rules=MAP evil.example 127.0.0.1",
                  "--disable-features=BlockInsecurePrivateNetworkRequests,PrivateNetworkAccessSendPreflights,"
                  "LocalNetworkAccessChecks"]
-    with sync_playwright() as playwright:
-        chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), timeout=TIMEOUT_MS,
-                                              args=[*CHROMIUM_ARGS, *rebinding])
-        try:
-            page = chromium.new_page()
-            page.set_default_timeout(TIMEOUT_MS)
-            page.route(f"{evil}/attack.html", lambda route: route.fulfill(
-                status=200, content_type="text/html", body="<!DOCTYPE html><title>elsewhere</title>"))
-            page.goto(f"{evil}/attack.html")
-            result = page.evaluate(ATTACK, {"token": server.token, "studio": f"http://127.0.0.1:{port}",
-                                            "save": {"job": hexagon, "target": "rebound.toml"}})
-        finally:
-            chromium.close()
+    chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), timeout=TIMEOUT_MS,
+                                          args=[*CHROMIUM_ARGS, *rebinding])
+    try:
+        page = chromium.new_page()
+        page.set_default_timeout(TIMEOUT_MS)
+        page.route(f"{evil}/attack.html", lambda route: route.fulfill(
+            status=200, content_type="text/html", body="<!DOCTYPE html><title>elsewhere</title>"))
+        page.goto(f"{evil}/attack.html")
+        result = page.evaluate(ATTACK, {"token": server.token, "studio": f"http://127.0.0.1:{port}",
+                                        "save": {"job": hexagon, "target": "rebound.toml"}})
+    finally:
+        chromium.close()
     assert not any(server.token in text for text in result["texts"]), "the page (and its token) reached evil.example"
     assert "foldfab studio answers only at 127.0.0.1" in result["texts"][0]
     assert result["statuses"][0] == 403, "the token alone does not let another origin save"
