@@ -7,7 +7,10 @@ import copy
 import http.client
 import json
 import shutil
+import socket
+import struct
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -349,9 +352,12 @@ def server(studio):
 
 
 def request(server, method, path, body=b"", headers=None):
+    """(status, Content-Type, body); a POST comes from the studio's own page (its ``Origin``) unless told."""
+    host = f"127.0.0.1:{server.server_address[1]}"
+    own = {"Host": host, **({"Origin": f"http://{host}"} if method == "POST" else {})}
     connection = http.client.HTTPConnection("127.0.0.1", server.server_address[1], timeout=30)
     try:
-        connection.request(method, path, body, {"Host": f"127.0.0.1:{server.server_address[1]}", **(headers or {})})
+        connection.request(method, path, body, {**own, **(headers or {})})
         response = connection.getresponse()
         return response.status, response.getheader("Content-Type"), response.read()
     finally:
@@ -384,6 +390,7 @@ def test_http_refuses_a_huge_body_before_reading_it(server):
     try:
         connection.putrequest("POST", "/api/design", skip_host=True)
         connection.putheader("Host", f"127.0.0.1:{server.server_address[1]}")
+        connection.putheader("Origin", f"http://127.0.0.1:{server.server_address[1]}")
         connection.putheader("Content-Type", "application/json")
         connection.putheader("X-Foldfab-Token", server.token)
         connection.putheader("Content-Length", str(MAX_BODY + 1))
@@ -392,6 +399,262 @@ def test_http_refuses_a_huge_body_before_reading_it(server):
         assert response.status == 413 and "too large" in json.loads(response.read())["error"]
     finally:
         connection.close()
+
+
+# --- raw HTTP: smuggling, framing, origins, timeouts (issue 17) ------------------------------------
+
+
+def exchange(server: StudioServer, data: bytes, timeout: float = 20.0) -> bytes:
+    """Send ``data`` on one connection, stop sending, and read until the server closes."""
+    with socket.create_connection(("127.0.0.1", server.server_address[1]), timeout=timeout) as sock:
+        try:
+            sock.sendall(data)
+            sock.shutdown(socket.SHUT_WR)
+        except OSError:  # the server closed first (a refusal): read what it answered
+            pass
+        chunks = []
+        with contextlib.suppress(ConnectionResetError):
+            while chunk := sock.recv(65536):
+                chunks.append(chunk)
+    return b"".join(chunks)
+
+
+def responses(data: bytes) -> list[tuple[int, dict[str, list[str]], bytes]]:
+    """The HTTP responses in ``data``: (status, headers by lower-case name, body), framed by Content-Length."""
+    found = []
+    while data:
+        head, separator, rest = data.partition(b"\r\n\r\n")
+        assert separator, f"a response without the end of its headers: {data[:200]!r}"
+        lines = head.decode("latin-1").split("\r\n")
+        version, status = lines[0].split(" ")[:2]
+        assert version == "HTTP/1.1", lines[0]
+        headers: dict[str, list[str]] = {}
+        for line in lines[1:]:
+            name, _, value = line.partition(":")
+            headers.setdefault(name.strip().lower(), []).append(value.strip())
+        length = int(headers["content-length"][0])
+        found.append((int(status), headers, rest[:length]))
+        data = rest[length:]
+    return found
+
+
+def raw_request(server: StudioServer, method: str = "GET", target: str = "/", body: bytes = b"",
+                host: str | None = None, token: str | None = None, origin: str | None = "own",
+                content_type: str | None = "application/json", length: str | None = "auto",
+                extra: tuple[str, ...] = ()) -> bytes:
+    """One request as bytes, each part given (``None`` leaves it out; ``origin="own"``, ``length="auto"``)."""
+    own = f"127.0.0.1:{server.server_address[1]}"
+    lines = [f"{method} {target} HTTP/1.1", f"Host: {host or own}"]
+    if token is not None:
+        lines.append(f"X-Foldfab-Token: {token}")
+    if origin is not None:
+        lines.append(f"Origin: {'http://' + own if origin == 'own' else origin}")
+    if content_type is not None and method == "POST":
+        lines.append(f"Content-Type: {content_type}")
+    if length is not None and (body or method == "POST"):
+        lines.append(f"Content-Length: {len(body) if length == 'auto' else length}")
+    lines.extend(extra)
+    return ("\r\n".join(lines) + "\r\n\r\n").encode("latin-1") + body
+
+
+def smuggled(server: StudioServer, hexagon: dict, name: str = "smuggled.toml") -> bytes:
+    """Two valid requests: the page (it carries the token) and a save of ``name``."""
+    save = json.dumps({"job": hexagon, "target": name}).encode()
+    return raw_request(server, "GET", "/") + raw_request(server, "POST", "/api/save", save, token=server.token)
+
+
+def refusals(server: StudioServer, inner: bytes) -> dict[str, tuple[bytes, int]]:
+    """Requests the studio refuses, each carrying ``inner`` as its body or after it; the status expected."""
+    token = server.token
+    return {
+        "host": (raw_request(server, "POST", "/api/save", inner, host="evil.example", token=token), 403),
+        "token": (raw_request(server, "POST", "/api/save", inner, token="guess"), 403),
+        "method": (raw_request(server, "POST", "/", inner, token=token), 405),
+        "content type": (raw_request(server, "POST", "/api/save", inner, token=token, content_type="text/plain"), 415),
+        "no length": (raw_request(server, "POST", "/api/save", token=token, length=None) + inner, 411),
+        "chunked": (raw_request(server, "POST", "/api/save", token=token, length=None,
+                                extra=("Transfer-Encoding: chunked",)) + f"{len(inner):x}\r\n".encode() + inner
+                    + b"\r\n0\r\n\r\n", 501),
+        "two lengths": (raw_request(server, "POST", "/api/save", inner, token=token,
+                                    extra=(f"Content-Length: {len(inner)}",)), 400),
+        "junk length": (raw_request(server, "POST", "/api/save", inner, token=token, length=f"+{len(inner)}"), 400),
+        "body on GET": (raw_request(server, "GET", "/api/state", inner, token=token), 400),
+        "two hosts": (raw_request(server, "GET", "/", extra=("Host: evil.example",)) + inner, 400),
+        "foreign origin": (raw_request(server, "POST", "/api/save", inner, token=token,
+                                       origin="http://evil.example"), 403),
+    }
+
+
+@pytest.mark.parametrize("kind", ["host", "token", "method", "content type", "no length", "chunked", "two lengths",
+                                  "junk length", "body on GET", "two hosts", "foreign origin"])
+def test_a_refused_requests_body_is_never_read_as_a_request(server, hexagon, folder, kind):
+    data, status = refusals(server, smuggled(server, hexagon))[kind]
+    answered = responses(exchange(server, data))
+    assert [s for s, _, _ in answered] == [status], "one refusal, and the smuggled requests are never answered"
+    assert answered[0][1]["connection"] == ["close"]
+    assert server.token.encode() not in answered[0][2]
+    assert not (folder / "smuggled.toml").exists()
+
+
+def test_a_refused_request_is_answered_then_closed_even_before_its_body_arrives(server):
+    with socket.create_connection(("127.0.0.1", server.server_address[1]), timeout=20) as sock:
+        sock.sendall(raw_request(server, "POST", "/api/save", b"", host="evil.example", length="100"))
+        reply = sock.makefile("rb").read()  # the server closes without waiting for the 100 bytes
+    assert reply.startswith(b"HTTP/1.1 403 ")
+
+
+@pytest.mark.parametrize("headers", ["X-A: b\r\n c\r\n{host}", " {host}", "Host : {port}\r\n{host}",
+                                     "X: y\r\nbad line\r\n{host}", "{host}\r\nX-\x00: 1"])
+def test_malformed_header_lines_are_refused(server, headers):
+    host = f"Host: 127.0.0.1:{server.server_address[1]}"
+    data = f"GET / HTTP/1.1\r\n{headers.format(host=host, port=server.server_address[1])}\r\n\r\n"
+    answered = responses(exchange(server, data.encode("latin-1") + raw_request(server, "GET", "/")))
+    assert [s for s, _, _ in answered] == [400] and server.token.encode() not in answered[0][2]
+
+
+def test_an_absolute_request_target_is_refused(server):
+    port = server.server_address[1]
+    data = raw_request(server, "GET", f"http://127.0.0.1:{port}/") + raw_request(server, "GET", "/")
+    assert [s for s, _, _ in responses(exchange(server, data))] == [400]
+
+
+def test_a_foreign_origin_or_site_cannot_post(server, hexagon):
+    body = json.dumps({"job": hexagon}).encode()
+    token = {"Content-Type": "application/json", "X-Foldfab-Token": server.token}
+    port = server.server_address[1]
+    assert request(server, "POST", "/api/design", body, {**token, "Origin": "http://evil.example"})[0] == 403
+    assert request(server, "POST", "/api/design", body, {**token, "Origin": "null"})[0] == 403
+    assert request(server, "POST", "/api/design", body, {**token, "Sec-Fetch-Site": "cross-site"})[0] == 403
+    assert request(server, "POST", "/api/design", body, {**token, "Sec-Fetch-Site": "same-site"})[0] == 403
+    assert request(server, "GET", "/api/state", headers={"X-Foldfab-Token": server.token,
+                                                         "Origin": "http://evil.example"})[0] == 403
+    no_origin = raw_request(server, "POST", "/api/design", body, token=server.token, origin=None)
+    assert [s for s, _, _ in responses(exchange(server, no_origin))] == [403], "a POST must name its origin"
+    for origin in (f"http://127.0.0.1:{port}", f"http://localhost:{port}"):
+        headers = {**token, "Origin": origin, "Sec-Fetch-Site": "same-origin"}
+        assert request(server, "POST", "/api/design", body, headers)[0] == 200
+
+
+def test_the_token_is_read_only_from_its_header(server):
+    assert request(server, "GET", f"/api/state?token={server.token}")[0] == 403
+    assert request(server, "GET", f"/api/state?X-Foldfab-Token={server.token}")[0] == 403
+    assert request(server, "GET", "/api/state", headers={"X-Foldfab-Token": server.token})[0] == 200
+
+
+def test_a_non_ascii_token_is_a_403(server):
+    data = raw_request(server, "GET", "/api/state").replace(b"\r\n\r\n", "\r\nX-Foldfab-Token: é€\r\n\r\n".encode())
+    answered = responses(exchange(server, data))
+    assert [s for s, _, _ in answered] == [403] and "token" in json.loads(answered[0][2])["error"]
+    assert request(server, "GET", "/api/state", headers={"X-Foldfab-Token": server.token})[0] == 200
+
+
+@pytest.mark.parametrize("data", [b"GET / HTTP/1.1\r\nHost: evil.example\r\n\r\n", b"GET /\x00 HTTP/1.1\r\n\r\n",
+                                  b"GARBAGE\r\n\r\n", b"PUT / HTTP/1.1\r\n\r\n", "{}"])
+def test_every_response_forbids_framing(server, data):
+    if data == "{}":
+        data = raw_request(server, "GET", "/")
+    for status, headers, _ in responses(exchange(server, data)):
+        assert headers["x-frame-options"] == ["DENY"], status
+        assert "frame-ancestors 'none'" in headers["content-security-policy"][0], status
+    for path in ("/", "/static/studio.js", "/api/state", "/nothing"):
+        for status, headers, _ in responses(exchange(server, raw_request(server, "GET", path, token=server.token))):
+            assert headers["x-frame-options"] == ["DENY"] and headers["content-security-policy"], (path, status)
+
+
+def test_a_slow_or_idle_client_times_out(studio):
+    with serving(StudioServer(studio, request_timeout=0.3)) as server:
+        for data in (b"", b"GET / HTTP/1.1\r\nHo", raw_request(server, "POST", "/api/state", token=server.token,
+                                                                   length="10")):
+            with socket.create_connection(("127.0.0.1", server.server_address[1]), timeout=20) as sock:
+                sock.sendall(data)
+                assert sock.makefile("rb").read() == b"", "the server closes a connection whose request stalls"
+        with socket.create_connection(("127.0.0.1", server.server_address[1]), timeout=20) as sock:
+            sock.sendall(raw_request(server, "GET", "/api/state", token=server.token))
+            reader = sock.makefile("rb")
+            assert reader.readline().startswith(b"HTTP/1.1 200")
+            reader.read()  # then idle on the kept-alive connection: closed too (read returns at the close)
+
+
+def test_connections_beyond_the_cap_get_503(studio):
+    with serving(StudioServer(studio, max_connections=2)) as server:
+        address = ("127.0.0.1", server.server_address[1])
+        holders = [socket.create_connection(address, timeout=20) for _ in range(2)]
+        try:
+            with socket.create_connection(address, timeout=20) as extra:
+                reply = extra.makefile("rb").read()
+            assert reply.startswith(b"HTTP/1.1 503 ") and b"X-Frame-Options: DENY" in reply
+        finally:
+            for holder in holders:
+                holder.close()
+        deadline = time.monotonic() + 20  # the holders' threads end when they see the close: then served again
+        while (status := responses(exchange(server, raw_request(server, "GET", "/")))[0][0]) == 503:
+            assert time.monotonic() < deadline, "a freed connection slot was never reused"
+        assert status == 200
+
+
+def test_a_client_that_resets_is_no_traceback(studio, capfd):
+    with serving(StudioServer(studio, max_connections=1)) as server:
+        with socket.create_connection(("127.0.0.1", server.server_address[1]), timeout=20) as sock:
+            sock.sendall(b"GET / HTTP/1.1\r\nHo")
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))  # close = reset
+        deadline = time.monotonic() + 20  # its one slot is free again once the reset was handled
+        while (status := responses(exchange(server, raw_request(server, "GET", "/")))[0][0]) == 503:
+            assert time.monotonic() < deadline, "the reset connection was never let go"
+        assert status == 200
+    assert "Traceback" not in capfd.readouterr().err
+
+
+def test_a_burst_of_connections_waits_in_the_backlog(studio):
+    server = StudioServer(studio, max_connections=100)
+    address = ("127.0.0.1", server.server_address[1])
+    waiting = []
+    try:
+        for _ in range(100):  # the server does not accept yet: every connection must fit the listen backlog
+            waiting.append(socket.create_connection(address, timeout=5))
+        with serving(server):
+            for sock in waiting:
+                sock.sendall(raw_request(server, "GET", "/static/studio.css", extra=("Connection: close",)))
+            for sock in waiting:
+                assert sock.makefile("rb").read().startswith(b"HTTP/1.1 200 ")
+    finally:
+        for sock in waiting:
+            sock.close()
+        server.server_close()
+
+
+def test_parallel_saves_of_a_new_file_do_not_replace_each_other(studio, hexagon, folder):
+    for round_ in range(3):
+        barrier = threading.Barrier(6)
+        answers: list[tuple[int, dict]] = []
+
+        def save_one(name: int) -> None:
+            job = copy.deepcopy(hexagon)
+            job["design"]["name"] = f"writer-{name}"
+            barrier.wait(timeout=20)
+            answers.append(call(studio, "/api/save", {"job": job, "target": f"race-{round_}.toml"}))
+
+        threads = [threading.Thread(target=save_one, args=(n,)) for n in range(6)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join(timeout=60)
+        assert sorted(status for status, _ in answers) == [200] + [409] * 5
+        winner = next(answer for status, answer in answers if status == 200)
+        assert load_job(folder / f"race-{round_}.toml").name == winner["job"]["design"]["name"]
+        assert all(answer["exists"] for status, answer in answers if status == 409)
+
+
+def test_the_path_field_cannot_widen_the_relative_rule(tmp_path, hexagon):
+    start = tmp_path / "a" / "work"
+    start.mkdir(parents=True)
+    studio = Studio(start, start / "job.toml")
+    for target in ("../pwned.toml", "../../pwned.toml"):
+        status, answer = call(studio, "/api/save", {"job": hexagon, "path": str(tmp_path / "a" / "x.toml"),
+                                                    "target": target})
+        assert status == 400 and "must stay inside" in answer["error"]
+    assert not list(tmp_path.rglob("pwned.toml"))
+    status, _ = call(studio, "/api/save", {"job": hexagon, "path": str(tmp_path / "a" / "x.toml"), "target": "ok.toml"})
+    assert status == 200 and (start / "ok.toml").is_file(), "relative targets start in the studio's folder"
 
 
 def test_cli_starts_the_server(tmp_path):

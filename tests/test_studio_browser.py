@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from foldfab.job import job_data, load_job
 from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
 from test_studio_api import serving
@@ -29,7 +30,8 @@ JOBS = Path(__file__).resolve().parent.parent / "jobs"
 
 
 @pytest.fixture(scope="module")
-def browser():
+def playwright():
+    """Playwright, once per module (its sync API runs one instance per thread)."""
     if not CHROMIUM.is_file():
         pytest.fail(f"Chromium not found at {CHROMIUM}: install it (Debian: apt-get install -y chromium); "
                     "the studio's browser tests need it and do not skip", pytrace=False)
@@ -39,11 +41,16 @@ def browser():
         pytest.fail("Playwright is not installed: pip install playwright (its own browser download is not "
                     "needed: the tests use /usr/bin/chromium)", pytrace=False)
     with sync_playwright() as playwright:
-        chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, timeout=TIMEOUT_MS)
-        try:
-            yield chromium
-        finally:
-            chromium.close()
+        yield playwright
+
+
+@pytest.fixture(scope="module")
+def browser(playwright):
+    chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, timeout=TIMEOUT_MS)
+    try:
+        yield chromium
+    finally:
+        chromium.close()
 
 
 @pytest.fixture
@@ -392,3 +399,61 @@ def test_the_profile_point_an_error_blames_is_ringed_in_red(page):
     page.evaluate("window.studio.profile.view.draw()")
     assert ring_pixels(page, "profile", 2, points) > 32, "a red ring round the point the error names"
     assert ring_pixels(page, "profile", 0, points) == 0
+
+
+ATTACK = """async ({token, studio, save}) => {
+  const smuggle = (inner) => fetch("/refused", {method: "POST", body: inner, headers: {"Content-Type": "text/plain"}})
+    .then(r => r.text()).catch(e => "error: " + e);
+  const read = () => fetch("/next").then(r => r.text()).catch(e => "error: " + e);
+  const texts = [await read()];
+  const host = studio.replace("http://", "");
+  const page = `GET / HTTP/1.1\\r\\nHost: ${host}\\r\\n\\r\\n`;
+  const body = JSON.stringify(save);
+  const write = `POST /api/save HTTP/1.1\\r\\nHost: ${host}\\r\\nOrigin: ${studio}\\r\\nX-Foldfab-Token: ${token}\\r\\n` +
+                `Content-Type: application/json\\r\\nContent-Length: ${new TextEncoder().encode(body).length}\\r\\n\\r\\n${body}`;
+  for (let i = 0; i < 5; i++) {
+    texts.push(await smuggle(page + write));
+    texts.push(await read());
+  }
+  const json = {"Content-Type": "application/json", "X-Foldfab-Token": token};
+  const statuses = [];
+  for (const url of ["/api/save", studio + "/api/save"]) {
+    statuses.push(await fetch(url, {method: "POST", headers: json, body}).then(r => r.status).catch(e => "blocked"));
+  }
+  statuses.push(await fetch(studio + "/api/save", {method: "POST", mode: "no-cors", body,
+                                                   headers: {"Content-Type": "text/plain"}})
+                .then(r => r.type).catch(e => "blocked"));
+  return {texts, statuses};
+}"""
+
+
+def test_a_page_of_another_origin_cannot_use_the_studio(playwright, folder, server):
+    """DNS rebinding: a page served as evil.example, whose name then resolves to 127.0.0.1, tries to read
+    the page (and its token) and to save a file: directly, by smuggling requests in refused requests'
+    bodies, and, handed the token, by the API itself (refused for its Host, and cross-origin by the
+    browser's preflight, which the studio does not answer)."""
+    port = server.server_address[1]
+    evil = f"http://evil.example:{port}"
+    hexagon = job_data(load_job(folder / "hexagon.toml"))
+    # The resolver rule is the rebinding; the disabled features are Chromium's own local-network checks
+    # (other browsers and older Chromium have none), so that what is tested is the studio's defence.
+    rebinding = ["--host-resolver-rules=MAP evil.example 127.0.0.1",
+                 "--disable-features=BlockInsecurePrivateNetworkRequests,PrivateNetworkAccessSendPreflights,"
+                 "LocalNetworkAccessChecks"]
+    chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), timeout=TIMEOUT_MS,
+                                          args=[*CHROMIUM_ARGS, *rebinding])
+    try:
+        page = chromium.new_page()
+        page.set_default_timeout(TIMEOUT_MS)
+        page.route(f"{evil}/attack.html", lambda route: route.fulfill(
+            status=200, content_type="text/html", body="<!DOCTYPE html><title>elsewhere</title>"))
+        page.goto(f"{evil}/attack.html")
+        result = page.evaluate(ATTACK, {"token": server.token, "studio": f"http://127.0.0.1:{port}",
+                                        "save": {"job": hexagon, "target": "rebound.toml"}})
+    finally:
+        chromium.close()
+    assert not any(server.token in text for text in result["texts"]), "the page (and its token) reached evil.example"
+    assert "foldfab studio answers only at 127.0.0.1" in result["texts"][0]
+    assert result["statuses"][0] == 403, "the token alone does not let another origin save"
+    assert result["statuses"][1:] == ["blocked", "opaque"], result["statuses"]
+    assert not (folder / "rebound.toml").exists()

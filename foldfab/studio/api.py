@@ -11,10 +11,12 @@ header, then flat little-endian arrays the browser reads without parsing.
 
 **Files.**  The studio reads and writes only the paths the user types.  A
 relative path is taken from the folder the studio was started in and must stay
-inside that folder or the job's folder (symbolic links resolved); an absolute
-path (or ``~/...``) is the user's explicit choice and is used as given.  An
-existing file is replaced only when the request says ``overwrite``.  Every file
-is written atomically.
+inside that folder or the folder of the job the studio was started with (symbolic
+links resolved; never a folder a request names); an absolute path (or ``~/...``)
+is the user's explicit choice and is used as given.  An existing file is replaced
+only when the request says ``overwrite``, and two requests creating the same new
+file do not both succeed: the second is told it exists (409).  Every file is
+written atomically.
 """
 
 from __future__ import annotations
@@ -161,6 +163,7 @@ class Studio:
     job_path: Path | None = None
     _devices: dict = field(default_factory=dict)
     _lock: threading.Lock = field(default_factory=threading.Lock)
+    _write_lock: threading.Lock = field(default_factory=threading.Lock)
 
     def __post_init__(self) -> None:
         from foldfab.job import load_job
@@ -227,7 +230,7 @@ class Studio:
         path = Path(text).expanduser()
         return path if path.is_absolute() else self.start_dir / path
 
-    def user_path(self, text: str, job_path: Path) -> Path:
+    def user_path(self, text: str) -> Path:
         """A path the user typed, under the module docstring's file rule."""
         if not text.strip():
             raise ApiError("type a file name first")
@@ -235,10 +238,10 @@ class Studio:
         if typed.is_absolute():
             return typed
         resolved = (self.start_dir / typed).resolve()
-        folders = (self.start_dir, job_path.parent.resolve())
-        if not any(resolved.is_relative_to(folder) for folder in folders):
+        job_dir = (self.job_path or self.start_dir / "untitled.toml").parent.resolve()
+        if not any(resolved.is_relative_to(folder) for folder in (self.start_dir, job_dir)):
             raise ApiError(f"{text}: a relative path must stay inside the folder the studio was started in "
-                           f"({self.start_dir}) or the job's folder ({folders[1]}); type an absolute path "
+                           f"({self.start_dir}) or the job's folder ({job_dir}); type an absolute path "
                            "to use another folder", cause={"view": "file"})
         return resolved
 
@@ -247,8 +250,9 @@ class Studio:
         path = path.resolve()
         return str(path.relative_to(self.start_dir)) if path.is_relative_to(self.start_dir) else str(path)
 
-    def _target(self, request: dict, job_path: Path, suffixes: tuple[str, ...] | None) -> Path:
-        target = self.user_path(_field(request, "target", str), job_path)
+    def _target(self, request: dict, suffixes: tuple[str, ...] | None) -> Path:
+        """Where to write; call it holding ``_write_lock`` so that the exists check and the write are one step."""
+        target = self.user_path(_field(request, "target", str))
         if suffixes and target.suffix.lower() not in suffixes:
             raise ApiError(f"{target}: expected a file name ending in {', '.join(suffixes)}", cause={"view": "file"})
         if not target.parent.is_dir():
@@ -388,7 +392,7 @@ class Studio:
         """Read a job file: its tables for the views."""
         from foldfab.job import job_data, load_job
 
-        path = self.user_path(_field(request, "target", str), self._job_path(request))
+        path = self.user_path(_field(request, "target", str))
         job = load_job(path)
         return {"job": job_data(job), "path": str(path), "display": self.display(path)}
 
@@ -407,10 +411,11 @@ class Studio:
         from foldfab.job import job_data, job_to_toml, parse_job
 
         job = self._job(request)
-        target = self._target(request, job.path, (".toml",))
-        text = job_to_toml(job, target.parent)
-        saved = parse_job(text, target)
-        write_text(target, text)
+        with self._write_lock:
+            target = self._target(request, (".toml",))
+            text = job_to_toml(job, target.parent)
+            saved = parse_job(text, target)
+            write_text(target, text)
         return {"written": str(target), "path": str(target), "display": self.display(target),
                 "job": job_data(saved)}
 
@@ -419,12 +424,13 @@ class Studio:
         from foldfab.output import SUFFIX_KINDS, kind_of, write_design_files
 
         design = self._build(request)
-        target = self._target(request, design.job.path, tuple(SUFFIX_KINDS))
-        kind = kind_of(target)
-        try:
-            write_design_files(design, [(kind, target)])
-        except OSError as exc:
-            raise ApiError(f"{target}: cannot write: {exc.strerror or exc}", cause={"view": "file"}) from None
+        with self._write_lock:
+            target = self._target(request, tuple(SUFFIX_KINDS))
+            kind = kind_of(target)
+            try:
+                write_design_files(design, [(kind, target)])
+            except OSError as exc:
+                raise ApiError(f"{target}: cannot write: {exc.strerror or exc}", cause={"view": "file"}) from None
         return {"written": str(target), "kind": kind}
 
     def _fabricate(self, request: dict):
