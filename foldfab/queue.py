@@ -231,10 +231,9 @@ def _program_from(text: str, meta: str) -> Program:
 
 def make_snapshot(job_path: Path, job_text: str, name: str, device: DeviceProfile, program: Program) -> Snapshot:
     """The snapshot of a built job: the texts are read now, so later edits change nothing."""
-    try:
-        device_text = Path(device.source).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise FoldfabError(f"{device.source}: cannot read the device profile to queue it ({exc.strerror})") from None
+    from foldfab.files import SMALL_LIMIT, read_text
+
+    device_text = read_text(device.source, "device profile", SMALL_LIMIT, encoding="utf-8")
     return Snapshot(name, str(Path(job_path).resolve()), job_text, device.name, device_text, program)
 
 

@@ -210,12 +210,16 @@ def _sample(path, samples: int | None, tolerance: float, scale: float) -> np.nda
 def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = None,
                       tolerance: float | None = None, where: str = "") -> np.ndarray:
     """The chosen path of ``file`` as an (N, 2) array in mm, y up from the page bottom."""
+    import io
     from xml.etree.ElementTree import ParseError
 
+    from foldfab.files import SVG_LIMIT, read_bytes
+
     where = where or str(file)
+    data = read_bytes(file, "SVG file", SVG_LIMIT)
     try:
-        doc = _svgpathtools().Document(str(file))
-    except (ParseError, OSError) as exc:
+        doc = _svgpathtools().Document(io.BytesIO(data))
+    except ParseError as exc:
         raise FoldfabError(f"{file}: cannot read SVG: {exc}") from None
     root = doc.tree.getroot()
     order = {id(el): i for i, el in enumerate(root.iter())}

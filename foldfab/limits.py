@@ -1,0 +1,8 @@
+"""The caps on what foldfab builds, checked before the work starts (the command line's
+help names them, so this module imports nothing)."""
+
+MAX_FACES = 2_000_000
+"""The most faces a design may have unless the job (``[design].max_faces``) or the command
+line (``--max-faces``) allows more.  A face costs about 650 bytes while the design is built
+(a 10-million-face design reached 6.5 GB before running out of memory), so this is ~1.3 GB;
+twice the 1,000,000-face roll the benchmarks build."""
