@@ -6,3 +6,9 @@ MAX_FACES = 2_000_000
 line (``--max-faces``) allows more.  A face costs about 650 bytes while the design is built
 (a 10-million-face design reached 6.5 GB before running out of memory), so this is ~1.3 GB;
 twice the 1,000,000-face roll the benchmarks build."""
+MAX_STROKES = 2_000_000
+"""The most strokes (lines drawn, each perforation dash one) a program may have unless the
+job allows more (``[fabrication].max_strokes``).  The 1,000,000-face roll draws about a
+million; a stroke costs a few hundred bytes on its way to the program (its line, its text,
+its progress entry), so this is again about a gigabyte; a 0.1 mm perforation of a roll's
+creases would otherwise run to tens of millions of dashes."""

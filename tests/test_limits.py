@@ -178,3 +178,44 @@ def test_the_studio_builds_at_most_its_own_limit(tmp_path):
     error = json.loads(response.body)["error"]
     assert response.status == 400
     assert f"more than the limit of {STUDIO_MAX_FACES:,}" in error and "foldfab design" in error
+
+
+# --- strokes -----------------------------------------------------------------------------------
+
+PERFORATED = """[profile]
+points = [[0, 0], [8, 10], [0, 20], [8, 30], [0, 40]]
+[trajectory]
+template = "regular"
+corners = 6
+radius = 40
+[fabrication]
+strategy = "perforate"
+max_strokes = {limit}
+[fabrication.perforate]
+valley = [0.1, 0.1]
+mountain = [0.1, 0.1]
+clearance = 0.1
+"""
+
+
+def test_a_program_over_the_stroke_limit_is_refused_before_it_is_cut(tmp_path):
+    from foldfab.devices import load_device
+    from foldfab.errors import FoldfabError
+    from foldfab.fabrication import fabricate, parse_fabrication
+    from foldfab.interpret import interpret
+
+    job = tmp_path / "fine.toml"
+    job.write_text(PERFORATED.format(limit=500))
+    line = cli("export", job, "--device", "hp7475a", "-o", tmp_path / "x.hpgl")
+    assert "strokes, more than the limit of 500;" in line and "[fabrication].max_strokes = N" in line
+    assert "a longer [fabrication.perforate] pattern" in line and not (tmp_path / "x.hpgl").exists()
+    design = build_design(parse_job(job.read_text(), job))
+    with pytest.raises(FoldfabError, match="more than the limit of 500"):
+        fabricate(design, load_device("hp7475a"))
+    bound = int(line.split("up to ")[1].split(" strokes")[0].replace(",", ""))
+    allowed = build_design(parse_job(PERFORATED.format(limit=bound), job))
+    strokes = interpret(fabricate(allowed, load_device("hp7475a")).program, load_device("hp7475a")).strokes
+    assert bound - 10 <= len(strokes) <= bound  # the count is a bound, and a close one
+    from foldfab.limits import MAX_STROKES
+
+    assert parse_fabrication({}, "x").max_strokes == MAX_STROKES
