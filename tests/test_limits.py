@@ -219,3 +219,16 @@ def test_a_program_over_the_stroke_limit_is_refused_before_it_is_cut(tmp_path):
     from foldfab.limits import MAX_STROKES
 
     assert parse_fabrication({}, "x").max_strokes == MAX_STROKES
+
+
+@pytest.mark.parametrize("table, key", [("[design]\nmax_faces = 0\n", "[design].max_faces: must be at least 1"),
+                                        ("[design]\nmax_faces = 1.5\n", "[design].max_faces: expected a whole number"),
+                                        ("[fabrication]\nmax_strokes = 0\n", "[fabrication].max_strokes: must be at least 1"),
+                                        ("[fabrication]\nmax_strokes = \"many\"\n",
+                                         "[fabrication].max_strokes: expected a whole number")])
+def test_the_limits_in_a_job_are_checked(table, key):
+    from foldfab.errors import FoldfabError
+
+    with pytest.raises(FoldfabError, match=key.replace("[", r"\[").replace("]", r"\]").replace(".", r"\.")):
+        parse_job(table + '[profile]\npoints = [[0, 0], [5, 10]]\n[trajectory]\ntemplate = "regular"\ncorners = 6\n'
+                  'radius = 40\n', "job.toml")
