@@ -32,7 +32,7 @@ def cmd_design(args: argparse.Namespace) -> int:
     from foldfab.output import write_design_files
 
     outputs = _design_outputs(args)
-    design = load_design(args.job, allow_penetration=args.allow_penetration)
+    design = load_design(args.job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)
     try:
         write_design_files(design, outputs)
     except OSError as exc:  # e.g. the path is a folder or not writable: one line, and every file as it was
@@ -79,7 +79,7 @@ def _fabricate(args: argparse.Namespace):
     from foldfab.fabrication import fabricate
 
     device = load_device(args.device)
-    design = load_design(args.job, allow_penetration=args.allow_penetration)
+    design = load_design(args.job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)
     fab = fabricate(design, device, scale=getattr(args, "scale", None))
     for warning in (*design.warnings, *fab.warnings):
         print(f"foldfab: warning: {warning}", file=sys.stderr)
@@ -188,6 +188,7 @@ def _add_fabrication_args(parser: argparse.ArgumentParser, output_help: str) -> 
                         help="device profile: a built-in name, a profile in your config folder, or a .toml path")
     parser.add_argument("-o", "--output", required=True, metavar="OUT", help=output_help)
     parser.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
+    _add_max_faces(parser)
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     _add_scale_arg(parser)
 
@@ -211,6 +212,14 @@ def _scale(text: str) -> float | str:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a number > 0 or fit, got {text!r}")
     return value
+
+
+def _add_max_faces(parser: argparse.ArgumentParser) -> None:
+    from foldfab.limits import MAX_FACES
+
+    parser.add_argument("--max-faces", type=_positive_int, metavar="N",
+                        help=f"build a design of up to N faces (default: the job's [design].max_faces, "
+                             f"else {MAX_FACES:,})")
 
 
 
@@ -314,6 +323,8 @@ def _resume_command(args: argparse.Namespace, port: str, token: str) -> list[str
     for switch in ("xonxoff", "rtscts"):
         if getattr(args, switch) is not None:
             command.append(f"--{switch}" if getattr(args, switch) else f"--no-{switch}")
+    if args.max_faces:
+        command += ["--max-faces", str(args.max_faces)]
     command += [f"--{flag.replace('_', '-')}" for flag in ("yes", "json", "allow_penetration") if getattr(args, flag)]
     if args.scale is not None:  # the same scale makes the same program, which the token is for
         command += ["--scale", str(args.scale)]
@@ -352,6 +363,7 @@ def _add_plot_parser(sub) -> None:
     plot.add_argument("--json", action="store_true", help="progress as JSON lines on stdout")
     plot.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
     _add_scale_arg(plot)
+    _add_max_faces(plot)
     plot.set_defaults(func=cmd_plot)
 
 # --- foldfab queue ---------------------------------------------------------------------------
@@ -377,7 +389,8 @@ def cmd_queue_add(args: argparse.Namespace) -> int:
     new = []
     for job in args.jobs:
         design, device, fab = _fabricate(argparse.Namespace(job=job, device=args.device, scale=args.scale,
-                                                            allow_penetration=args.allow_penetration))
+                                                            allow_penetration=args.allow_penetration,
+                                                            max_faces=args.max_faces))
         port = args.port or device.port
         if not port:
             raise FoldfabError(f"{device.name} has no port: give --port PORT (a serial port such as /dev/ttyUSB0, "
@@ -647,6 +660,7 @@ def _add_queue_parser(sub) -> None:
                      help=f"higher runs first, {PRIORITIES[0]} to {PRIORITIES[1]} (default 0)")
     add.add_argument("--allow-penetration", action="store_true", help="queue a design whose faces intersect")
     _add_scale_arg(add)
+    _add_max_faces(add)
     add.set_defaults(func=cmd_queue_add)
 
     listing = commands.add_parser("list", parents=[common], help="list jobs")
@@ -813,6 +827,7 @@ def build_parser() -> argparse.ArgumentParser:
     design.add_argument("--mesh", metavar="OUT", help="write the 3D model (.stl, .obj, .ply or .glb)")
     design.add_argument("--allow-penetration", action="store_true",
                         help="build a design whose faces intersect, with a warning instead of an error")
+    _add_max_faces(design)
     design.add_argument("--json", action="store_true", help="print the summary as JSON")
     design.set_defaults(func=cmd_design)
 

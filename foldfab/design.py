@@ -14,6 +14,7 @@ import numpy as np
 from foldfab.crease_pattern import CreasePattern, build_crease_pattern
 from foldfab.errors import DesignError, FoldfabError
 from foldfab.job import Job, SvgSource
+from foldfab.limits import MAX_FACES
 from foldfab.reflection import Reflection, reflect
 
 
@@ -62,13 +63,41 @@ def trajectory_points(job: Job) -> np.ndarray:
     return pts
 
 
-def build_design(job: Job, *, check_penetration: bool = True, allow_penetration: bool = False) -> Design:
+LIMIT_ADVICE = ("use fewer points (for an SVG: fewer [profile].samples or a larger tolerance), or set "
+                "[design].max_faces = N in the job or pass --max-faces N to build it anyway")
+"""How to raise :data:`MAX_FACES` (the studio says its own)."""
+
+
+def check_faces(profile: np.ndarray, trajectory: np.ndarray, glue_tab: bool, limit: int, advice: str) -> None:
+    """Refuse, before anything is built, a design of more than ``limit`` faces (``advice``: how
+    to allow more).
+
+    Every profile segment meets every trajectory segment, and a glue tab, in one face, so the
+    count is known from the polylines alone (straight trajectory corners merge later: this may
+    count a few too many, never too few)."""
+    columns = max(len(trajectory) - 1, 0) + glue_tab
+    faces = max(len(profile) - 1, 0) * columns
+    if faces > limit:
+        tab = " and a glue tab" if glue_tab else ""
+        raise DesignError(f"the design has {faces:,} faces ({len(profile) - 1:,} profile segments x "
+                          f"{len(trajectory) - 1:,} trajectory segments{tab}), more than the limit of {limit:,}; "
+                          + advice)
+
+
+def build_design(job: Job, *, check_penetration: bool = True, allow_penetration: bool = False,
+                 max_faces: int | None = None, limit_advice: str = LIMIT_ADVICE) -> Design:
     """Build the design of ``job``; penetration is an error unless ``allow_penetration``.
 
-    Geometry errors are reported against the job file, naming the table they come from.
+    A design of more faces than ``max_faces`` (default: the job's ``[design].max_faces``,
+    else :data:`MAX_FACES`) is refused before it is built, with ``limit_advice`` saying how
+    to allow it.  Geometry errors are reported against the job file, naming the table they
+    come from.
     """
+    limit = max_faces if max_faces is not None else job.max_faces or MAX_FACES
     try:
-        grid = reflect(profile_points(job), trajectory_points(job))
+        profile, trajectory = profile_points(job), trajectory_points(job)
+        check_faces(profile, trajectory, job.crease.glue_tab > 0, limit, limit_advice)
+        grid = reflect(profile, trajectory)
         cp = build_crease_pattern(grid, job.crease.flat_angle, job.crease.glue_tab)
     except DesignError as exc:
         raise DesignError(f"{job.path}: {exc}") from None

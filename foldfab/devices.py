@@ -315,7 +315,7 @@ def load_device(name_or_path: str | os.PathLike) -> DeviceProfile:
     text = str(name_or_path)
     if text.endswith(".toml") or os.sep in text or "/" in text:
         path = Path(text)
-        if not path.is_file():
+        if not path.exists():  # anything else there is refused by name as it is read
             raise FoldfabError(f"{path}: no such device profile file; check the path")
         return _load_file(path)
     for folder in (_user_dir(), _builtin_dir()):
@@ -349,15 +349,13 @@ def _builtin_dir() -> Path:
 
 
 def _load_file(path: Path) -> DeviceProfile:
+    from foldfab.files import SMALL_LIMIT, read_text
+
+    text = read_text(path, "device profile", SMALL_LIMIT)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise FoldfabError(f"{path}: not valid TOML ({exc}); fix the syntax") from None
-    except UnicodeDecodeError as exc:
-        raise FoldfabError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); save the profile "
-                           "as UTF-8") from None
-    except OSError as exc:
-        raise FoldfabError(f"{path}: cannot read ({exc.strerror})") from None
     return _parse(_Reader(data, str(path)))
 
 

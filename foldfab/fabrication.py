@@ -20,6 +20,7 @@ from foldfab.design import Design
 from foldfab.devices import DeviceProfile, parse_sheet
 from foldfab.errors import FoldfabError
 from foldfab.job import TomlTable
+from foldfab.limits import MAX_STROKES
 from foldfab.plan import Pass, Pause, PlotPlan, Tool
 
 STRATEGIES = ("force", "perforate", "two-sided")
@@ -44,6 +45,7 @@ class FabricationSpec:
         default_factory=lambda: {"valley": (1.0, 1.0), "mountain": (2.0, 1.0, 0.5, 1.0)})
     clearance: float = 1.0
     layers: dict[str, dict[str, Any]] = field(default_factory=dict)
+    max_strokes: int = MAX_STROKES
 
 
 PERFORATION_MIN = 0.1
@@ -104,8 +106,10 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
                     sub.fail(name, "expected a table of tool settings (pen, force, speed, passes)")
                 layers[name] = value
         sub.check_unknown()
+    max_strokes = table.integer("max_strokes", MAX_STROKES, minimum=1)
     table.check_unknown()
-    return FabricationSpec(strategy, sheet, margin, rotate, scale, optimize, flip_edge, perforation, clearance, layers)
+    return FabricationSpec(strategy, sheet, margin, rotate, scale, optimize, flip_edge, perforation, clearance, layers,
+                           max_strokes)
 
 
 def flip_message(spec: FabricationSpec, device: DeviceProfile) -> str:
@@ -231,6 +235,7 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
                (lambda p: p.real + 1j * (sheet[1] - p.imag))
         lines["mountain"] = [flip(p) for p in lines["mountain"]]
         lines["cut"] = [flip(p) for p in lines["cut"]]
+    check_strokes(design, spec, lines)
 
     doc = vp.Document()
     doc.page_size = sheet
@@ -243,6 +248,30 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
         doc.layers[layer_id].set_property("vp_color", vp.Color(colour))
         steps.append(Pass(layer_id, name, tools[name]))
     return PlotPlan(doc, steps, sheet)
+
+
+def check_strokes(design: Design, spec: FabricationSpec, lines: dict[str, list[np.ndarray]]) -> None:
+    """Refuse, before the plan is optimized or perforated, a program of more strokes than
+    ``spec.max_strokes``: one per line, one per dash of a perforated crease."""
+    from foldfab import scoring
+
+    count = 0
+    for name, layer in lines.items():
+        if spec.strategy == "perforate" and name in spec.perforation:
+            count += scoring.dash_bound(_segments(layer), spec.perforation[name], spec.clearance)
+        else:
+            count += len(layer)
+    if count > spec.max_strokes:
+        finer = " or a longer [fabrication.perforate] pattern" if spec.strategy == "perforate" else ""
+        raise FoldfabError(f"{design.job.path}: the program would draw up to {count:,} strokes, more than the limit of "
+                           f"{spec.max_strokes:,}; use a design of fewer faces{finer}, or set "
+                           "[fabrication].max_strokes = N in the job to fabricate it anyway")
+
+
+def _segments(lines) -> np.ndarray:
+    """The segments (S, 2) complex of polylines ``lines``, in order."""
+    segments = [np.column_stack([line[:-1], line[1:]]) for line in lines]
+    return np.concatenate(segments) if segments else np.zeros((0, 2), complex)
 
 
 def finish_plan(layout: PlotPlan, device: DeviceProfile, spec: FabricationSpec,
@@ -267,9 +296,7 @@ def finish_plan(layout: PlotPlan, device: DeviceProfile, spec: FabricationSpec,
         layer = plan.document.layers[step.layer_id]
         if step.name in perforated:
             # Dashes follow the optimized creases in order; every crease vertex gets its clearance.
-            segments = [np.column_stack([line[:-1], line[1:]]) for line in layer]
-            dashes = scoring.perforate(np.concatenate(segments) if segments else np.zeros((0, 2), complex),
-                                       spec.perforation[step.name], spec.clearance)
+            dashes = scoring.perforate(_segments(layer), spec.perforation[step.name], spec.clearance)
             dashed = vp.LineCollection(list(dashes))
             for key, value in layer.metadata.items():
                 dashed.set_property(key, value)

@@ -76,6 +76,7 @@ class Job:
     crease: CreaseSpec
     fabrication: dict[str, Any] = field(default_factory=dict)
     text: str = ""
+    max_faces: int | None = None  # [design].max_faces: None for foldfab.design.MAX_FACES
 
 
 class TomlTable:
@@ -232,7 +233,7 @@ def _svg_source(table: TomlTable, base: Path) -> SvgSource:
     if samples is not None and tolerance is not None:
         table.fail("samples", "give either samples or tolerance, not both")
     resolved = (base / file).resolve()
-    if not resolved.is_file():
+    if not resolved.exists():  # read (a regular file, bounded) when the design is built
         table.fail("svg", f"file not found: {resolved}")
     return SvgSource(resolved, path_value, samples, tolerance)
 
@@ -300,6 +301,7 @@ def job_from_data(data: dict[str, Any], path: str | Path = "<job>", text: str = 
     base = path.parent
     design = TomlTable(source, "design", data.get("design", {}))
     name = design.string("name", path.stem)
+    max_faces = design.integer("max_faces", None, minimum=1)
     design.check_unknown()
     for required in ("profile", "trajectory"):
         if required not in data:
@@ -313,19 +315,15 @@ def job_from_data(data: dict[str, Any], path: str | Path = "<job>", text: str = 
     from foldfab.fabrication import parse_fabrication
 
     parse_fabrication(fabrication, source)  # a mistake there is the job's, whichever command reads it
-    return Job(path, name, profile, trajectory, crease, fabrication, text)
+    return Job(path, name, profile, trajectory, crease, fabrication, text, max_faces)
 
 
 def load_job(path: str | Path) -> Job:
     """Read and validate a job file."""
+    from foldfab.files import JOB_LIMIT, read_text
+
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (some Windows editors) is no mistake
-    except FileNotFoundError:
-        raise FoldfabError(f"{path}: job file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise FoldfabError(f"{path}: cannot read job file: {exc}") from None
-    return parse_job(text, path)
+    return parse_job(read_text(path, "job file", JOB_LIMIT), path)
 
 
 # --- writing -------------------------------------------------------------------------------
@@ -357,7 +355,8 @@ def job_data(job: Job, folder: str | Path | None = None) -> dict[str, Any]:
         trajectory = {"template": "polyline", "points": [list(p) for p in spec.points]}
     else:
         trajectory = {"template": spec.template, **spec.params}
-    data = {"design": {"name": job.name}, "profile": profile, "trajectory": trajectory,
+    design = {"name": job.name} if job.max_faces is None else {"name": job.name, "max_faces": job.max_faces}
+    data = {"design": design, "profile": profile, "trajectory": trajectory,
             "crease": {"flat_angle": job.crease.flat_angle, "glue_tab": job.crease.glue_tab}}
     if job.fabrication:
         data["fabrication"] = copy.deepcopy(job.fabrication)

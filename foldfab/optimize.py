@@ -36,7 +36,7 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
     """
     if method == "none":
         return plan
-    sort = "linesort --two-opt" if method == "two-opt" else "linesort"
+    two_opt = method == "two-opt"
     doc = plan.document.clone()  # metadata only: layers are added below, in plan order
     pen = start
     steps = [step for _, step in device_steps(plan, tool_changer)]
@@ -49,8 +49,10 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
         lines = plan.document.layers[step.layer_id]
         result = lines.lines
         if _ends_meet(lines, resolution):
-            result = _run(f"linemerge --tolerance {resolution}", result)
-        result = _sort(result, sort, pen)
+            merged = _collection(result)
+            merged.merge(tolerance=resolution, flip=True)
+            result = merged.lines
+        result = _sort(result, two_opt, pen)
         onward = _onward(meets[index + 1:], start, resolution)
         # The sorted order backwards (each line reversed) has the same inner travel: take the
         # direction that arrives and leaves by less.
@@ -79,19 +81,29 @@ def _ends_meet(lines, tolerance: float) -> bool:
     return bool(np.any(pairs[:, 0] // 2 != pairs[:, 1] // 2))
 
 
-def _run(pipeline: str, lines: list[np.ndarray]) -> list[np.ndarray]:
-    """``lines`` through a vpype pipeline."""
+def _collection(lines: list[np.ndarray]):
+    """``lines`` as a vpype ``LineCollection`` of their own (vpype's operations change it in place)."""
     import vpype as vp
-    import vpype_cli
 
-    doc = vp.Document()
-    doc.add(lines, 1)
-    return vpype_cli.execute(pipeline, doc).layers.get(1, vp.LineCollection()).lines
+    return vp.LineCollection(lines)
 
 
-def _sort(lines: list[np.ndarray], command: str, pen: complex) -> list[np.ndarray]:
-    """``lines`` in the order vpype's ``command`` (``linesort``) gives them, from the line
-    nearest ``pen`` on (vpype's sort starts from the first line it is given).
+def _vpype_operation(name: str):
+    """The function behind vpype's layer command ``name`` (``linesort``, ``linesimplify``),
+    called on a ``LineCollection`` directly.
+
+    Never through ``vpype_cli.execute``: a pipeline runs in vpype's one global command state,
+    so two fabrications in parallel threads (the studio, the queue's workers) read each other's
+    lines.  The command's own function takes a collection and returns one, and touches no
+    shared state; vpype keeps it as the ``__wrapped__`` of the command's callback."""
+    from vpype_cli import operations
+
+    return getattr(operations, name).callback.__wrapped__
+
+
+def _sort(lines: list[np.ndarray], two_opt: bool, pen: complex) -> list[np.ndarray]:
+    """``lines`` in the order vpype's ``linesort`` (``two_opt``: with ``--two-opt``) gives
+    them, from the line nearest ``pen`` on (vpype's sort starts from the first line it is given).
 
     A layer of more than :data:`TILE_LINES` lines is sorted tile by tile (:func:`_tiles`),
     each tile from where the pen left the one before.  vpype's line index rebuilds its
@@ -101,11 +113,13 @@ def _sort(lines: list[np.ndarray], command: str, pen: complex) -> list[np.ndarra
     patterns the tiles mostly travel less too (the 12.6 m roll's valleys: 12.5 m against
     19.4 m; its mountains, long zigzags among short pieces, 43.3 m against 38.3 m).
     """
+    linesort = _vpype_operation("linesort")
     out: list[np.ndarray] = []
     for tile in _tiles(lines, pen):
         chosen = [lines[i] for i in tile]
         if len(chosen) > 1:
-            chosen = _run(command, _nearest_first(chosen, pen))
+            chosen = linesort(_collection(_nearest_first(chosen, pen)), no_flip=False, two_opt=two_opt,
+                              passes=SORT_PASSES).lines
         out.extend(chosen)
         pen = out[-1][-1] if out else pen
     return out
@@ -121,7 +135,8 @@ def _simplify(lines: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
         return lines
     out = list(lines)
     # shapely simplifies each line on its own and keeps every one (a collapsed one as two points)
-    for i, line in zip(bent, _run(f"linesimplify --tolerance {tolerance}", [lines[i] for i in bent]), strict=True):
+    simplified = _vpype_operation("linesimplify")(_collection([lines[i] for i in bent]), tolerance)
+    for i, line in zip(bent, simplified.lines, strict=True):
         out[i] = line
     return out
 
@@ -155,6 +170,10 @@ def _kept_whole(lines: list[np.ndarray], tolerance: float) -> np.ndarray:
             far &= (length > 0) & (cross > (1.001 * tolerance + 1e-9) * length)
         whole[chosen] = far
     return whole
+
+
+SORT_PASSES = 250
+"""Passes of vpype's two-opt sort at most (the default of its ``linesort --passes``)."""
 
 
 TILE_LINES = 2000

@@ -231,10 +231,9 @@ def _program_from(text: str, meta: str) -> Program:
 
 def make_snapshot(job_path: Path, job_text: str, name: str, device: DeviceProfile, program: Program) -> Snapshot:
     """The snapshot of a built job: the texts are read now, so later edits change nothing."""
-    try:
-        device_text = Path(device.source).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise FoldfabError(f"{device.source}: cannot read the device profile to queue it ({exc.strerror})") from None
+    from foldfab.files import SMALL_LIMIT, read_text
+
+    device_text = read_text(device.source, "device profile", SMALL_LIMIT, encoding="utf-8")
     return Snapshot(name, str(Path(job_path).resolve()), job_text, device.name, device_text, program)
 
 
@@ -427,6 +426,11 @@ def _pid_alive(pid: int) -> bool:
         return True
 
 
+class QueueBusy(FoldfabError):
+    """Another process held the queue's write lock for longer than the store waits: a passing
+    condition (a worker's heartbeat tries again), unlike a full disk or a read-only file."""
+
+
 class SqliteQueueStore:
     """The queue in one SQLite file in WAL mode, shared by threads, processes and hosts' workers
     (on a local disk).  ``wait``: seconds to wait for another writer before giving up."""
@@ -483,7 +487,7 @@ class SqliteQueueStore:
             db.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
             db.execute("COMMIT")
         except BaseException:
-            db.execute("ROLLBACK")
+            _rollback(db)
             raise
 
     @contextmanager
@@ -495,8 +499,11 @@ class SqliteQueueStore:
             name = getattr(exc, "sqlite_errorname", "")
             where = f"queue file {self.path}"
             if name.startswith("SQLITE_BUSY") or name.startswith("SQLITE_LOCKED"):
-                message = (f"{where} is busy: another foldfab kept it locked for more than {self.wait:g} s; "
-                           "nothing was changed; try again (or wait longer with --wait)")
+                raise QueueBusy(f"{where} is busy: another foldfab kept it locked for more than {self.wait:g} s; "
+                                "nothing was changed; try again (or wait longer with --wait)") from None
+            if name.startswith("SQLITE_FULL"):
+                message = (f"{where}: the disk is full (SQLite: {exc}); nothing was changed; free space on the "
+                           f"disk that holds {self.path.parent}, or choose a queue on another disk with --queue")
             elif name == "SQLITE_READONLY_DIRECTORY":
                 message = (f"{where}: its folder is not writable, and SQLite needs to create "
                            f"{self.path.name}-wal and {self.path.name}-shm beside it; nothing was changed; "
@@ -553,7 +560,7 @@ class SqliteQueueStore:
                 yield db
                 db.execute("COMMIT")
             except BaseException:
-                db.execute("ROLLBACK")
+                _rollback(db)
                 raise
 
     def _params(self, **values) -> dict:
@@ -810,6 +817,13 @@ class SqliteQueueStore:
                       **values)
             self._event(db, job_id, state, message)
             return True
+
+
+def _rollback(db: sqlite3.Connection) -> None:
+    """Roll back the open transaction, if any: SQLite has rolled it back itself when a commit
+    failed for a full disk, and a second rollback would replace that error with its own."""
+    if db.in_transaction:
+        db.execute("ROLLBACK")
 
 
 def _job_id(job_id: int) -> int:

@@ -114,13 +114,15 @@ def load_state(token: str) -> ResumeState:
     """The saved state named ``token``; a clear error if there is none or it is unreadable."""
     if not _TOKEN.fullmatch(token):
         raise FoldfabError(f"--resume {token}: not a resume token (foldfab prints one when a plot stops)")
+    from foldfab.files import SMALL_LIMIT, read_text
+
     path = state_dir() / f"{token}.json"
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(read_text(path, "resume state", SMALL_LIMIT, encoding="utf-8"))
     except FileNotFoundError:
         raise FoldfabError(f"--resume {token}: no saved plot with that token in {path.parent} "
                            "(it is deleted once the plot finishes)") from None
-    except (OSError, ValueError) as exc:
+    except ValueError as exc:
         raise FoldfabError(f"--resume {token}: cannot read {path}: {exc}") from None
     try:
         state = ResumeState(**data)

@@ -181,6 +181,13 @@ def _straight_pairs(at: np.ndarray, unit: np.ndarray, real: np.ndarray, extra: i
     return partner
 
 
+def dash_bound(segments: np.ndarray, pattern: tuple[float, ...], clearance: float) -> int:
+    """At most how many dashes :func:`perforate` cuts ``segments`` (S, 2) into: counted before
+    they are cut, so that a pattern too fine for the creases is refused up front."""
+    usable = np.abs(segments[:, 1] - segments[:, 0]) - 2.0 * clearance
+    return int(np.ceil(usable[usable > 0] / sum(pattern)).sum()) * (len(pattern) // 2)
+
+
 def perforate(segments: np.ndarray, pattern: tuple[float, ...], clearance: float) -> np.ndarray:
     """Dashes (D, 2) complex cutting each segment by ``pattern`` (cut, gap, cut, gap ...) mm.
 

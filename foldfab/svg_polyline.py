@@ -15,6 +15,7 @@ number of points spaced evenly along the arc.
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -210,17 +211,22 @@ def _sample(path, samples: int | None, tolerance: float, scale: float) -> np.nda
 def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = None,
                       tolerance: float | None = None, where: str = "") -> np.ndarray:
     """The chosen path of ``file`` as an (N, 2) array in mm, y up from the page bottom."""
+    import io
     from xml.etree.ElementTree import ParseError
 
+    from foldfab.files import SVG_LIMIT, read_bytes
+
     where = where or str(file)
+    data = read_bytes(file, "SVG file", SVG_LIMIT)
     try:
-        doc = _svgpathtools().Document(str(file))
-    except (ParseError, OSError) as exc:
+        doc = _svgpathtools().Document(io.BytesIO(data))
+    except ParseError as exc:
         raise FoldfabError(f"{file}: cannot read SVG: {exc}") from None
     root = doc.tree.getroot()
     order = {id(el): i for i, el in enumerate(root.iter())}
     try:
-        drawn = doc.paths()
+        with np.errstate(all="ignore"):  # a huge transform overflows in svgpathtools: the points are checked below
+            drawn = doc.paths()
     except (ValueError, IndexError, TypeError, ZeroDivisionError) as exc:  # svgpathtools' parser and transforms
         raise FoldfabError(f"{file}: cannot read its paths: {exc}; check the d attributes (and transforms) "
                            "in an SVG editor") from None
@@ -238,16 +244,22 @@ def read_svg_polyline(file: Path, path: str | int = 0, samples: int | None = Non
     if not chosen_path.iscontinuous():
         raise FoldfabError(f"{where}: the chosen path of {file} has several pieces (subpaths); use one continuous path")
     sx, sy, min_x, bottom, left, base = _page_transform(root, f"{file}")
-    ends = np.array([[seg.start, seg.end] for seg in chosen_path])
+    # complex: svgpathtools reads d="Z" (a close with no point before it) as a line to None, here NaN
+    ends = np.array([[seg.start, seg.end] for seg in chosen_path], dtype=complex)
     if not np.all(np.isfinite(ends)):
-        raise FoldfabError(f"{where}: the chosen path of {file} has a point that is not a finite number; "
+        raise FoldfabError(f"{where}: the chosen path of {file} has a point that is not a finite number (or none: a Z before any M?); "
                            "check its d attribute")
 
     def to_mm(points: np.ndarray) -> np.ndarray:
         return np.column_stack([left + (points.real - min_x) * sx, base + (bottom - points.imag) * sy])
 
-    x0, x1, y0, y1 = chosen_path.bbox()
-    if np.abs(to_mm(np.array([complex(x0, y0), complex(x1, y1)]))).max() > LENGTH_LIMIT:
+    try:
+        with np.errstate(all="ignore"):  # overflow gives inf or NaN, refused just below
+            x0, x1, y0, y1 = chosen_path.bbox()
+        reach = float(np.abs(to_mm(np.array([complex(x0, y0), complex(x1, y1)]))).max())
+    except OverflowError:  # a curve's extremes are found with Python floats, whose squares overflow
+        reach = math.inf
+    if not reach <= LENGTH_LIMIT:  # NaN too
         raise FoldfabError(f"{where}: the chosen path of {file} reaches beyond ±{LENGTH_LIMIT:,.0f} mm; "
                            "check the file's width, height and viewBox")
     pts = _sample(chosen_path, samples, tolerance or DEFAULT_TOLERANCE, max(sx, sy))

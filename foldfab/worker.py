@@ -22,7 +22,10 @@ the worker's terminal) -> ``cancelled``; the port could not be opened, the link 
 plotter was lost (the tool could not be lifted) or Ctrl-C on the worker ->
 ``interrupted``; the plotter reported an error or stalled (the tool was lifted), or the
 job cannot start (its stored program no longer matches its SHA-256, or its stored device
-profile no longer loads) -> ``failed``.
+profile no longer loads) -> ``failed``.  A progress save that fails for anything but another
+writer's lock (the disk is full, the queue file became read-only) stops the plotter at once,
+tool lifted: the queue keeps the last saved position, so a retry draws again at most the
+stroke whose save failed.
 A worker does not resume a job it saw interrupted itself, or lost (its lease expired), until
 ``retry_after`` seconds have passed (``--follow``), or not at all in this run
 (``--until-empty``, ``--once``): someone has to plug the cable back in, or the worker was too
@@ -39,8 +42,8 @@ from functools import partial
 from typing import TYPE_CHECKING, Callable, Protocol
 
 from foldfab.errors import FoldfabError
-from foldfab.queue import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, QueueStore,
-                           WorkerId, load_snapshot_device)
+from foldfab.queue import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, QueueBusy,
+                           QueueStore, WorkerId, load_snapshot_device)
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -243,9 +246,12 @@ class _Heartbeat(threading.Thread):
             with self._saving:
                 control = self.store.heartbeat(self.job_id, self.worker, self.options.lease, self.acked,
                                                self.progress, self.pauses_done, self.drawn)
-        except FoldfabError as exc:
+        except QueueBusy as exc:  # another writer holds the queue: again at the next beat, while the lease lasts
             if time.monotonic() - self.renewed > 0.8 * self.options.lease:
                 self.give_up(f"the lease could not be renewed for {self.options.lease:g} s ({exc})")
+            return
+        except FoldfabError as exc:  # a full disk, a read-only file: plotting on would draw what is never saved
+            self.give_up(f"the progress could not be saved: {exc}")
             return
         self.renewed = time.monotonic()
         if control.lost:

@@ -189,7 +189,7 @@ def test_a_profile_that_is_not_utf8_is_a_clear_error(tmp_path):
     path = tmp_path / "latin.toml"
     path.write_bytes(Path(load_device("grbl").source).read_bytes().replace(b'model = "', b'model = "\xff\xfe'))
     with pytest.raises(FoldfabError, match=r"latin\.toml: not UTF-8 text \(invalid start byte at byte \d+\); "
-                                           r"save the profile as UTF-8"):
+                                           r"save the device profile as UTF-8"):
         load_device(str(path))
     path.write_bytes(b"\xef\xbb\xbf" + Path(load_device("grbl").source).read_bytes())  # a byte-order mark is fine
     assert load_device(str(path)).name == "grbl"

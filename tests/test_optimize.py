@@ -11,9 +11,19 @@ from hypothesis import strategies as st
 from foldfab import optimize
 from foldfab.design import build_design
 from foldfab.job import parse_job
-from foldfab.optimize import (KEPT_WHOLE_POINTS, _kept_whole, _Onward, _onward, _reloop, _run, _simplify,
+from foldfab.optimize import (KEPT_WHOLE_POINTS, _kept_whole, _Onward, _onward, _reloop, _simplify,
                               _sort, _tiles)
 from foldfab.scoring import crease_lines
+
+
+def _run(pipeline: str, lines: list[np.ndarray]) -> list[np.ndarray]:
+    """``lines`` through a vpype command-line pipeline: the oracle for foldfab's direct calls."""
+    import vpype as vp
+    import vpype_cli
+
+    doc = vp.Document()
+    doc.add(lines, 1)
+    return vpype_cli.execute(pipeline, doc).layers.get(1, vp.LineCollection()).lines
 
 
 def pen_up(lines: list[np.ndarray], pen: complex) -> float:
@@ -40,7 +50,7 @@ def test_tiled_sort_draws_every_line_once_as_it_was_or_reversed(lines, tile, pen
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(optimize, "TILE_LINES", tile)
         tiles = _tiles(lines, pen)
-        out = _sort(lines, "linesort", pen)
+        out = _sort(lines, False, pen)
     assert sorted(np.concatenate(tiles).tolist()) == list(range(len(lines)))
     assert sorted(map(canonical, out)) == sorted(map(canonical, lines))
 
@@ -61,13 +71,14 @@ def test_tiles_run_from_the_pen_and_each_borders_the_next():
     assert [t.tolist() for t in backwards] == [t.tolist() for t in tiles[::-1]]
 
 
-def test_a_layer_within_one_tile_is_exactly_vpypes_sort():
+@pytest.mark.parametrize("two_opt", [False, True])
+def test_a_layer_within_one_tile_is_exactly_vpypes_sort(two_opt):
     rng = np.random.default_rng(5)
     lines = [np.array(p) for p in (rng.random((500, 2)) * 100) @ np.array([1, 1j])[:, None] + np.array([0, 3])]
     assert len(_tiles(lines, 7j)) == 1
-    out = _sort(lines, "linesort", 7j)
+    out = _sort(lines, two_opt, 7j)
     nearest = min(range(len(lines)), key=lambda i: min(abs(lines[i][0] - 7j), abs(lines[i][-1] - 7j)))
-    expected = _run("linesort", [lines[nearest], *lines[:nearest], *lines[nearest + 1:]])
+    expected = _run("linesort --two-opt" if two_opt else "linesort", [lines[nearest], *lines[:nearest], *lines[nearest + 1:]])
     assert [a.tolist() for a in out] == [a.tolist() for a in expected]
 
 
@@ -81,7 +92,7 @@ def test_tiles_travel_less_than_one_vpype_sort_on_a_long_crease_pattern(points, 
     lines = crease_lines(build_design(job, check_penetration=False).crease_pattern, "V")
     assert len(lines) > optimize.TILE_LINES
     whole = _run("linesort", lines)
-    assert pen_up(_sort(lines, "linesort", lines[0][0]), lines[0][0]) < pen_up(whole, lines[0][0])
+    assert pen_up(_sort(lines, False, lines[0][0]), lines[0][0]) < pen_up(whole, lines[0][0])
 
 
 def test_simplify_sends_only_bent_lines_to_vpype_and_keeps_the_order():
@@ -126,7 +137,7 @@ def test_each_tile_starts_at_the_line_nearest_where_the_last_one_ended():
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(optimize, "TILE_LINES", 100)
         tiles = _tiles(lines, 0j)
-        out = _sort(lines, "linesort", 0j)
+        out = _sort(lines, False, 0j)
     first = np.cumsum([0] + [len(t) for t in tiles[:-1]])
     assert len(tiles) > 4
     for tile, at in zip(tiles, first):

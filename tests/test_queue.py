@@ -766,3 +766,27 @@ class QueueMachine(RuleBasedStateMachine):
 
 QueueMachine.TestCase.settings = settings(max_examples=40, stateful_step_count=25, deadline=None)
 test_queue_state_machine = QueueMachine.TestCase
+
+
+def test_queue_add_on_a_full_disk_says_the_disk_is_full_and_adds_nothing(tmp_path, capsys, monkeypatch):
+    """A real SQLITE_FULL: SQLite's own page limit on the connection stands in for the disk.  A
+    commit that fails for a full disk is rolled back by SQLite itself; the store must not roll
+    back again and report that instead ("cannot rollback - no transaction is active")."""
+    queue = tmp_path / "queue.sqlite3"
+    args = ["queue", "add", "--queue", str(queue), "--device", "hp7475a", "--port", "sim://hp7475a", str(HEXAGON)]
+    assert run_cli(capsys, *args)[0] == 0
+    connect = SqliteQueueStore._connect
+
+    def full(self):
+        fresh = self._db is None
+        db = connect(self)
+        if fresh:  # no page more than the file has now
+            db.execute(f"PRAGMA max_page_count = {db.execute('PRAGMA page_count').fetchone()[0]}")
+        return db
+    monkeypatch.setattr(SqliteQueueStore, "_connect", full)
+    code, out, err = run_cli(capsys, *args)
+    assert code == 2 and out == "" and len(err.splitlines()) == 1
+    assert f"queue file {queue}: the disk is full" in err and "nothing was changed" in err
+    assert "free space on the disk" in err and "rollback" not in err
+    monkeypatch.undo()
+    assert len(SqliteQueueStore(queue).jobs()) == 1

@@ -6,6 +6,7 @@ import bisect
 import json
 import re
 import signal
+import sqlite3
 import subprocess
 import sys
 import threading
@@ -666,3 +667,47 @@ def test_an_earlier_save_never_lands_after_a_later_one():
     first.join(60)
     second.join(60)
     assert store.saved == [(260, 1), (270, 1)]
+class FullDisk:
+    """The queue's connection on a disk that fills up when ``full`` is set: from then on every
+    commit fails as SQLite fails it (it rolls the transaction back itself, then reports SQLITE_FULL)."""
+
+    def __init__(self, db):
+        self.db, self.full = db, False
+
+    def execute(self, sql, *args):
+        if sql == "COMMIT" and self.full:
+            self.db.execute("ROLLBACK")
+            error = sqlite3.OperationalError("database or disk is full")
+            error.sqlite_errorname = "SQLITE_FULL"
+            raise error
+        return self.db.execute(sql, *args)
+
+    def __getattr__(self, name):
+        return getattr(self.db, name)
+
+
+def test_a_full_disk_stops_the_job_at_the_first_progress_save_that_fails(store, snapshots):
+    snap = snapshots[("graphtec-ce6000", "force")]
+    store.add([NewJob(snap, "sim://a")])
+    strokes = original_strokes(snap)
+    disk = store._db = FullDisk(store._connect())
+    heartbeat, saves = store.heartbeat, []
+
+    def save(*args, **kwargs):  # the worker saves after every stroke: the 4th save finds the disk full
+        saves.append(args)
+        disk.full = disk.full or len(saves) == 4
+        return heartbeat(*args, **kwargs)
+    store.heartbeat = save
+    plotter, console = FakePlotter(), Console()
+    # beats of the heartbeat thread a minute apart: every save here is a stroke's
+    summary = Worker(store, console, WorkerOptions(mode="once", heartbeat=60, lease=600), runner=plotter).run()
+    assert len(saves) == 4 < len(strokes)
+    assert plotter.drawn["sim://a"] == strokes[:4]  # stopped (on request: the tool lifted) before the 5th
+    assert summary.ended == {"lost": [1]}
+    end = console.lines[-1]
+    assert end.startswith("end 1 lost the progress could not be saved: queue file ") and "the disk is full" in end
+    assert "the plotter was stopped at byte" in end and "4 of" in end
+    disk.full = False  # space freed: the queue holds the last save, so a retry draws again only the 4th stroke
+    job = store.job(1)
+    assert job.acked_bytes < job.program_bytes
+    assert start_point(snap.program, load_device(snap.device), job.acked_bytes, job.pauses_done).stroke == 3

@@ -12,6 +12,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import textwrap
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -539,6 +540,8 @@ def test_closed_path_is_one_piece(tmp_path):
      "unsupported SVG length"),
     (f'<svg {NS} width="10000000mm" height="5mm" viewBox="0 0 1 1" preserveAspectRatio="none">'
      '<path d="M 0 0 L 1 1"/></svg>', r"reaches beyond ±1,000,000 mm"),
+    (f'<svg {NS}><path d="Z"/></svg>', r"not a finite number \(or none: a Z before any M\?\)"),
+    (f'<svg {NS}><path transform="scale(1e300)" d="M 0 0 C 10 0 10 10 0 20"/></svg>', r"reaches beyond ±1,000,000 mm"),
 ])
 def test_unreadable_files(tmp_path, content, match):
     path = tmp_path / "bad.svg"
@@ -546,6 +549,15 @@ def test_unreadable_files(tmp_path, content, match):
     with pytest.raises(FoldfabError, match=match) as info:
         read(path)
     assert "\n" not in str(info.value)
+
+
+def test_a_huge_transform_of_an_arc_is_an_error_without_warnings(tmp_path):
+    path = tmp_path / "huge.svg"
+    path.write_text(f'<svg {NS}><path transform="scale(1e300)" d="M 0 0 A 10 10 0 0 1 10 10"/></svg>')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's overflow warnings would be lines of their own on stderr
+        with pytest.raises(FoldfabError, match="reaches beyond ±1,000,000 mm"):
+            read(path)
 
 
 # --------------------------------------------------------------------------- through a job file

@@ -35,6 +35,11 @@ import numpy as np
 from foldfab.errors import FoldfabError
 
 MAX_BODY = 16 * 2**20
+STUDIO_MAX_FACES = 200_000
+"""The most faces the studio builds and sends to the browser (a server answering every edit:
+a larger design is built with ``foldfab design``, up to :data:`foldfab.limits.MAX_FACES`)."""
+STUDIO_LIMIT_ADVICE = (f"the studio builds at most {STUDIO_MAX_FACES:,} faces: use fewer points, or build "
+                       "the saved job with 'foldfab design' or 'foldfab export' (their limit is higher)")
 MAGIC = b"FFS1"
 EDGE_GROUPS = ("F", "V", "M", "B")  # drawn in this order: outline on top
 VIEWS = {"design": "file", "profile": "profile", "trajectory": "trajectory", "crease": "creases",
@@ -293,7 +298,9 @@ class Studio:
         allow = _field(request, "allow_penetration", bool, False)
         job = self._job(request)
         try:
-            design = build_design(job, allow_penetration=True)
+            design = build_design(job, allow_penetration=True, max_faces=min(job.max_faces or STUDIO_MAX_FACES,
+                                                                             STUDIO_MAX_FACES),
+                                  limit_advice=STUDIO_LIMIT_ADVICE)
         except FoldfabError as exc:
             raise self._failure(job, str(exc)) from None
         if len(design.penetrations) and not allow:

@@ -1,0 +1,15 @@
+"""The caps on what foldfab builds, checked before the work starts (the command line's
+help names them, so this module imports nothing)."""
+
+MAX_FACES = 2_000_000
+"""The most faces a design may have unless the job (``[design].max_faces``) or the command
+line (``--max-faces``) allows more.  Twice the 1,000,000-face roll the benchmarks build.
+``foldfab design`` of 1,001,000 faces peaks at 1.8 GB (summary and penetration check, 21 s),
+so the limit is about 3.6 GB: a 10-million-face design ran out of memory after 6.5 GB and
+48 s; refused, it costs a moment (the count is known from the polylines alone)."""
+MAX_STROKES = 2_000_000
+"""The most strokes (lines drawn, each perforation dash one) a program may have unless the
+job allows more (``[fabrication].max_strokes``).  The 1,000,000-face roll draws about a
+million; a stroke costs a few hundred bytes on its way to the program (its line, its text,
+its progress entry), so this is again about a gigabyte; a 0.1 mm perforation of a roll's
+creases would otherwise run to tens of millions of dashes."""
