@@ -48,7 +48,7 @@ def test_json_progress_events_and_a_finished_job(capsys, tmp_path):
     code, out, err = plot(capsys, HELIX, "--device", "grbl", "--port", "sim://?time=fast", "--json",
                           "--preview", str(preview))
     assert code == 0, err
-    events = [json.loads(line) for line in out.splitlines()]
+    events = [json.loads(line) for line in out.splitlines()][1:-1]  # without the report and the summary
     assert events[0]["event"] == "start" and events[-1]["event"] == "done"
     assert events[-1]["percent"] == 100.0 and events[-1]["strokes_done"] == events[-1]["strokes_total"] > 0
     assert {"acknowledged", "drawn", "drawn_total", "layer", "elapsed", "eta"} <= set(events[0])
@@ -60,7 +60,7 @@ def test_json_progress_events_and_a_finished_job(capsys, tmp_path):
 def test_plain_progress_lines_when_stdout_is_not_a_terminal(capsys):
     code, out, err = plot(capsys, HELIX, "--device", "hp7475a", "--port", INSTANT)
     assert code == 0, err
-    lines = out.splitlines()
+    lines = out.split("\nestimate ")[1].splitlines()[1:-1]  # after the report, before the summary
     assert lines[0].strip().startswith("0.0%") and lines[-1].endswith("done")
     assert "\r" not in out  # no bar redrawn in place
 
@@ -113,26 +113,107 @@ def test_resume_refuses_a_changed_job(capsys, tmp_path):
     assert "changed since the plot stopped" in err and "plot the whole job again" in err
 
 
-@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
-def test_ctrl_c_stops_safely_exits_130_and_prints_the_resume_command(sig, tmp_path):
-    """Ctrl-C, a kill (SIGTERM) and a closed terminal (SIGHUP) all stop safely with a resume token."""
-    env = dict(os.environ, XDG_STATE_HOME=str(tmp_path / "state"))
-    job = tmp_path / "vase.toml"  # a long job: it is still plotting when Ctrl-C comes
+def long_job(tmp_path: Path) -> Path:
+    """The vase at 0.7: long enough on ``sim://?time=fast`` that a signal sent after its first
+    acknowledged bytes comes while it still plots."""
+    job = tmp_path / "vase.toml"
     job.write_text((ROOT / "jobs/vase-svg.toml").read_text().replace(
         "vase-profile.svg", str(ROOT / "jobs/vase-profile.svg")) + "\n[fabrication]\nscale = 0.7\n")
-    proc = subprocess.Popen([sys.executable, "-m", "foldfab", "plot", str(job), "--device", "hp7475a",
-                             "--port", "sim://?time=fast"], cwd=ROOT, env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    time.sleep(2.5)
+    return job
+
+
+def start_plot(tmp_path: Path, *args: str, **popen) -> subprocess.Popen:
+    env = dict(os.environ, XDG_STATE_HOME=str(tmp_path / "state"))
+    popen.setdefault("stdin", subprocess.DEVNULL)
+    return subprocess.Popen([sys.executable, "-m", "foldfab", "plot", *args], cwd=ROOT, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, **popen)
+
+
+def wait_for_handler(proc: subprocess.Popen, sig: int, timeout: float = 120.0) -> None:
+    """Wait until ``proc`` catches ``sig`` (its bit in SigCgt of /proc/PID/status): foldfab plot
+    installs its handlers first, before its heavy imports, so it is still starting then."""
+    deadline = time.monotonic() + timeout
+    while True:
+        status = Path(f"/proc/{proc.pid}/status").read_text()
+        caught = int(next(line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:")), 16)
+        if caught >> (sig - 1) & 1:
+            return
+        assert proc.poll() is None and time.monotonic() < deadline, "foldfab never installed its handlers"
+        time.sleep(0.002)  # poll interval
+
+
+def resume_files(tmp_path: Path) -> list[Path]:
+    folder = tmp_path / "state" / "foldfab" / "resume"
+    return sorted(folder.glob("*.json")) if folder.is_dir() else []
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
+def test_a_signal_while_starting_stops_before_anything_is_sent(sig, tmp_path):
+    """A signal during the imports (the handlers are the first thing cmd_plot does) ends with the
+    same clean stop as Ctrl-C: exit 130, one line, no traceback, nothing sent, nothing to resume."""
+    proc = start_plot(tmp_path, str(long_job(tmp_path)), "--device", "hp7475a", "--port", "sim://?time=fast")
+    wait_for_handler(proc, signal.SIGHUP)  # the last of the three installed
     proc.send_signal(getattr(signal, sig))
-    out, err = proc.communicate(timeout=60)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and out == ""  # not even the report: it stopped at the next step
+    assert err == "foldfab: stopped: stopped before anything was sent; nothing to resume\n"
+    assert resume_files(tmp_path) == []
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
+def test_a_signal_while_plotting_stops_safely_exits_130_and_prints_the_resume_command(sig, tmp_path):
+    """Ctrl-C, a kill (SIGTERM) and a closed terminal (SIGHUP) all stop safely with a resume token;
+    the signal comes once the plotter has acknowledged the first bytes (an event, not a time)."""
+    proc = start_plot(tmp_path, str(long_job(tmp_path)), "--device", "hp7475a", "--port", "sim://?time=fast",
+                      "--json")
+    for line in proc.stdout:
+        event = json.loads(line)
+        if event["event"] == "progress" and event["acknowledged"] > 0:
+            break
+    else:
+        pytest.fail(f"no progress event: {proc.stderr.read()}")
+    proc.send_signal(getattr(signal, sig))
+    out, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err
     last = err.strip().splitlines()[-1]
     assert last.startswith("foldfab: stopped: stopped on request; tool lifted;")
     assert "--resume" in last
     token = last.split("--resume ")[1].split()[0]
-    assert (tmp_path / "state" / "foldfab" / "resume" / f"{token}.json").exists()
+    assert resume_files(tmp_path) == [tmp_path / "state" / "foldfab" / "resume" / f"{token}.json"]
+    assert json.loads(out.splitlines()[-1])["event"] == "resume_token"
+
+
+def test_plot_reports_the_job_before_and_sums_it_up_after(capsys, tmp_path):
+    """The report export prints, then the progress, then time against the estimate, length drawn
+    and pen lifts; --preview says it wrote the file."""
+    preview = tmp_path / "preview.svg"
+    code, out, err = plot(capsys, HELIX, "--device", "hp7475a", "--port", INSTANT, "--preview", str(preview))
+    assert code == 0, err
+    assert main(["export", HELIX, "--device", "hp7475a", "-o", str(tmp_path / "helix.hpgl")]) == 0
+    report = capsys.readouterr().out.rsplit("\nwrote", 1)[0]
+    assert out.startswith(report + f"\nwrote        {preview}\n")
+    assert main(["export", HELIX, "--device", "hp7475a", "-o", str(tmp_path / "helix.hpgl"), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    lifts = sum(layer["pen_lifts"] for layer in info["layers"].values())
+    drawn = sum(layer["drawn_mm"] for layer in info["layers"].values())
+    summary = out.splitlines()[-1]
+    assert summary.startswith("plotted      ") and f"mm drawn, {lifts} pen lifts, in " in summary
+    assert summary.endswith(f"(estimate {info['estimated_time_s']:.1f} s)")
+    assert float(summary.split()[1]) == pytest.approx(drawn, abs=0.5)
+
+
+def test_json_plot_reports_and_sums_up_as_events(capsys):
+    code, out, err = plot(capsys, HELIX, "--device", "grbl", "--port", INSTANT, "--json")
+    assert code == 0, err
+    events = [json.loads(line) for line in out.splitlines()]
+    assert events[0]["event"] == "report" and events[1]["event"] == "start"
+    assert events[-2]["event"] == "done" and events[-1]["event"] == "summary"
+    report, summary = events[0], events[-1]
+    assert summary["pen_lifts"] == sum(layer["pen_lifts"] for layer in report["layers"].values())
+    assert summary["estimated_time_s"] == report["estimated_time_s"]
+    assert summary["drawn_mm"] == pytest.approx(events[-2]["drawn_total"], abs=0.1)
 
 
 def test_the_printed_resume_command_keeps_the_link_settings_and_the_answers(capsys, tmp_path):
