@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import json
-import shlex
 import os
+import pty
+import queue
+import select
+import shlex
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -257,3 +261,78 @@ def test_a_resume_that_cannot_start_keeps_its_token_and_says_how_to_finish(capsy
     assert "nothing was sent, and the resume token stays valid: " in err
     assert err.rstrip().endswith(f"--resume {token}")
     assert (state_dir() / f"{token}.json").exists()
+
+
+@pytest.fixture
+def pty_plotter():
+    """A simulated GRBL board on a pseudo-terminal (served in a thread): a port that is not
+    ``sim://``, so ``foldfab plot`` asks for the sheet as for real hardware."""
+    from foldfab.sim import SimOptions, create_simulator
+    from foldfab.sim.pty import serve_pty
+
+    sim = create_simulator(load_device("grbl"), SimOptions(time="fast", speedup=200))
+    stop, paths = threading.Event(), queue.Queue()
+    thread = threading.Thread(target=serve_pty, args=(sim, paths.put, stop), daemon=True)
+    thread.start()
+    yield paths.get(timeout=20), sim
+    stop.set()
+    thread.join(20)
+
+
+def read_until(fd: int, text: str, timeout: float = 120.0) -> str:
+    """Read a pipe until ``text`` has come (an event, with a deadline)."""
+    seen, deadline = b"", time.monotonic() + timeout
+    while text.encode() not in seen:
+        left = deadline - time.monotonic()
+        assert left > 0, f"no {text!r} in {seen!r}"
+        if select.select([fd], [], [], left)[0]:
+            chunk = os.read(fd, 4096)
+            assert chunk, f"closed before {text!r}: {seen!r}"
+            seen += chunk
+    return seen.decode()
+
+
+@pytest.mark.parametrize("answer", ["enter", "SIGINT", "SIGTERM", "eof"])
+def test_on_a_terminal_plot_asks_for_the_sheet_first(answer, tmp_path, pty_plotter):
+    """On a terminal, without --yes, the operator loads the sheet and presses Enter before any
+    byte goes to the plotter; Ctrl-C, a kill or the end of input there stops with nothing sent."""
+    port, sim = pty_plotter
+    typist, terminal = pty.openpty()  # plot's stdin is a terminal; the test types on the other side
+    proc = start_plot(tmp_path, HELIX, "--device", "grbl", "--port", port, stdin=terminal)
+    os.close(terminal)
+    try:
+        shown = read_until(proc.stderr.fileno(), "then press Enter to start")
+        assert "Load a 210 x 297 mm sheet on the grbl" in shown
+        assert sim.stats.bytes_received == 0  # it waits for the operator
+        if answer == "enter":
+            os.write(typist, b"\n")
+        elif answer == "eof":
+            os.write(typist, b"\x04")  # Ctrl-D: the end of input
+        else:
+            proc.send_signal(getattr(signal, answer))
+        out, err = proc.communicate(timeout=120)
+    finally:
+        os.close(typist)
+    assert "Traceback" not in err
+    if answer == "enter":
+        assert proc.returncode == 0, err
+        assert out.splitlines()[-1].startswith("plotted      ")
+        assert len(sim.strokes) == int(out.splitlines()[-1].split("pen lifts")[0].split()[-1]) > 0
+    else:
+        assert proc.returncode == 130
+        assert err.endswith("foldfab: stopped: stopped before anything was sent; nothing to resume\n")
+        assert sim.stats.bytes_received == 0 and resume_files(tmp_path) == []
+
+
+def test_with_yes_or_on_sim_plot_does_not_ask(tmp_path, pty_plotter):
+    port, sim = pty_plotter
+    typist, terminal = pty.openpty()
+    try:
+        for where in ([port, "--yes"], ["sim://?time=instant"]):
+            run = subprocess.run([sys.executable, "-m", "foldfab", "plot", HELIX, "--device", "grbl", "--port",
+                                  *where], stdin=terminal, capture_output=True, text=True, timeout=300,
+                                 env=dict(os.environ, XDG_STATE_HOME=str(tmp_path / "state")))
+            assert run.returncode == 0 and "press Enter" not in run.stderr, run.stderr
+    finally:
+        os.close(typist)
+        os.close(terminal)
