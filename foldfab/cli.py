@@ -573,25 +573,30 @@ class QueueConsole:
         print(f"job {job.id} {state}: {message}", flush=True)
 
 
-def _stop_like_ctrl_c(signum, frame) -> None:
-    raise KeyboardInterrupt
-
-
 def cmd_queue_run(args: argparse.Namespace) -> int:
     """Plot queued jobs (or rehearse them on simulated plotters with --dry-run).  SIGTERM (a service
     manager's stop) and SIGHUP (a closed terminal) act as Ctrl-C: the tool is lifted and the job is
     left interrupted, to resume; the handlers come first, so a signal while starting ends as cleanly."""
     import signal
 
-    stops = [getattr(signal, s) for s in ("SIGTERM", "SIGHUP") if hasattr(signal, s)]
-    previous = {sig: signal.signal(sig, _stop_like_ctrl_c) for sig in stops}
+    worker = []  # the Worker once it exists: a signal then stops it through events, never lost
+
+    def interrupt(signum, frame) -> None:
+        if not worker:
+            raise KeyboardInterrupt
+        worker[0].interrupt()
+
+    stops = [getattr(signal, s) for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    previous = {sig: signal.signal(sig, interrupt) for sig in stops}
     try:
         from foldfab.errors import FoldfabError
         from foldfab.worker import Worker, WorkerOptions, rehearse
 
         options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
         store, console = _queue_store(args), QueueConsole(rehearsal=args.dry_run)
-        summary = rehearse(store, console, options) if args.dry_run else Worker(store, console, options).run()
+        if not args.dry_run:
+            worker.append(Worker(store, console, options))
+        summary = rehearse(store, console, options) if args.dry_run else worker[0].run()
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

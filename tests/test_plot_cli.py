@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
+from processes import wait_for_handler
 
 from foldfab.cli import main
 from foldfab.devices import load_device
@@ -131,19 +132,6 @@ def start_plot(tmp_path: Path, *args: str, **popen) -> subprocess.Popen:
     popen.setdefault("stdin", subprocess.DEVNULL)
     return subprocess.Popen([sys.executable, "-m", "foldfab", "plot", *args], cwd=ROOT, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, **popen)
-
-
-def wait_for_handler(proc: subprocess.Popen, sig: int, timeout: float = 120.0) -> None:
-    """Wait until ``proc`` catches ``sig`` (its bit in SigCgt of /proc/PID/status): foldfab plot
-    installs its handlers first, before its heavy imports, so it is still starting then."""
-    deadline = time.monotonic() + timeout
-    while True:
-        status = Path(f"/proc/{proc.pid}/status").read_text()
-        caught = int(next(line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:")), 16)
-        if caught >> (sig - 1) & 1:
-            return
-        assert proc.poll() is None and time.monotonic() < deadline, "foldfab never installed its handlers"
-        time.sleep(0.002)  # poll interval
 
 
 def resume_files(tmp_path: Path) -> list[Path]:
