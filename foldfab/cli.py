@@ -243,8 +243,10 @@ def cmd_plot(args: argparse.Namespace) -> int:
     try:
         return _plot(args, cancel, sending, prompting)
     except _NotStarted:
+        after = ("the resume token stays valid: run the same command again" if args.resume else
+                 "nothing to resume")
         try:
-            print("foldfab: stopped: stopped before anything was sent; nothing to resume", file=sys.stderr)
+            print(f"foldfab: stopped: stopped before anything was sent; {after}", file=sys.stderr)
         except OSError:
             pass
         return 130
@@ -581,8 +583,8 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
 
     worker = []  # the Worker once it exists: a signal then stops it through events, never lost
 
-    def interrupt(signum, frame) -> None:
-        if not worker:
+    def interrupt(signum, frame) -> None:  # a second signal: stop waiting for the safe stop
+        if not worker or worker[0].interrupting:
             raise KeyboardInterrupt
         worker[0].interrupt()
 

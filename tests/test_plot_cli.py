@@ -324,3 +324,27 @@ def test_with_yes_or_on_sim_plot_does_not_ask(tmp_path, pty_plotter):
     finally:
         os.close(typist)
         os.close(terminal)
+
+
+def test_a_resume_stopped_at_the_prompt_keeps_its_token(capsys, tmp_path, pty_plotter, state_home):
+    port, sim = pty_plotter
+    job = str(tmp_path / "helix.toml")
+    Path(job).write_text(Path(HELIX).read_text())
+    code, out, err = plot(capsys, job, "--device", "grbl", "--port", f"{INSTANT}&error_at=30")
+    token = err.split("--resume ")[1].split()[0]
+    typist, terminal = pty.openpty()
+    proc = subprocess.Popen([sys.executable, "-m", "foldfab", "plot", job, "--device", "grbl", "--port", port,
+                             "--resume", token], cwd=ROOT, env=dict(os.environ, XDG_STATE_HOME=str(state_home)),
+                            stdin=terminal, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    os.close(terminal)
+    try:
+        assert "Check the partly drawn sheet is still in place on the grbl" in \
+            read_until(proc.stderr.fileno(), "then press Enter to start")
+        os.write(typist, b"\x04")
+        out, err = proc.communicate(timeout=120)
+    finally:
+        os.close(typist)
+    assert proc.returncode == 130 and err.endswith(
+        "foldfab: stopped: stopped before anything was sent; the resume token stays valid: "
+        "run the same command again\n")
+    assert sim.stats.bytes_received == 0 and (state_dir() / f"{token}.json").exists()
