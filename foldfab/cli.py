@@ -388,7 +388,8 @@ def _add_plot_parser(sub) -> None:
     plot.add_argument("--rtscts", action=argparse.BooleanOptionalAction, default=None,
                       help="hardware flow control on the port (default: the profile's)")
     plot.add_argument("--resume", type=_token, metavar="TOKEN", help="finish a stopped plot (foldfab printed the token)")
-    plot.add_argument("--yes", action="store_true", help="without a terminal, continue at every pause")
+    plot.add_argument("--yes", action="store_true", help="start without asking to load the sheet; without a "
+                      "terminal, continue at every pause")
     plot.add_argument("--json", action="store_true", help="progress as JSON lines on stdout")
     plot.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
     plot.set_defaults(func=cmd_plot)
