@@ -248,53 +248,100 @@ def _operator(args: argparse.Namespace, prompting: list[bool]):
     return None
 
 
+class _NotStarted(Exception):
+    """A stop (a signal, or no at the prompt) before the first byte was sent."""
+
+
 def cmd_plot(args: argparse.Namespace) -> int:
-    """Build the job's program as ``export`` does and stream it to the plotter."""
-    import shlex
+    """Build the job's program as ``export`` does, report it, and stream it to the plotter.
+
+    The signal handlers come first, before the heavy imports, so that Ctrl-C, SIGTERM or
+    SIGHUP at any moment ends the same clean way: before the first byte a signal only sets
+    the cancel event, looked at before each step, and the plot stops with nothing sent; once
+    sending, the engine stops safely on it (a second signal stops waiting for that)."""
     import signal
     import threading
+
+    cancel, sending, prompting = threading.Event(), [False], [False]
+
+    def interrupt(signum, frame):
+        if prompting[0] or (sending[0] and cancel.is_set()):
+            raise KeyboardInterrupt
+        first = not cancel.is_set()
+        cancel.set()
+        if sending[0] and first:
+            try:
+                print("\nfoldfab: stopping: finishing the current command and lifting the tool "
+                      "(Ctrl-C again to stop waiting)", file=sys.stderr)
+            except OSError:  # the terminal was closed (SIGHUP)
+                pass
+
+    stops = [s for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    previous = {name: signal.signal(getattr(signal, name), interrupt) for name in stops}
+    try:
+        return _plot(args, cancel, sending, prompting)
+    except _NotStarted:
+        after = ("the resume token stays valid: run the same command again" if args.resume else
+                 "nothing to resume")
+        try:
+            print(f"foldfab: stopped: stopped before anything was sent; {after}", file=sys.stderr)
+        except OSError:
+            pass
+        return 130
+    finally:
+        for name, handler in previous.items():
+            signal.signal(getattr(signal, name), handler)
+
+
+def _plot(args: argparse.Namespace, cancel, sending: list[bool], prompting: list[bool]) -> int:
+    """:func:`cmd_plot` once its signal handlers are in place."""
+    import shlex
 
     from foldfab.errors import FoldfabError
     from foldfab.progress import reporter
     from foldfab.resume import PlotStopped, ResumeNotStarted, plot
 
+    def checkpoint() -> None:
+        if cancel.is_set():
+            raise _NotStarted
+
+    checkpoint()
     if args.preview:
         _check_output(Path(args.preview), "--preview", (".svg",))
     design, device, fab = _fabricate(args)
     if args.json:
         for warning in fab.warnings:
             print(json.dumps({"event": "warning", "message": warning}), flush=True)
+    checkpoint()
     port = args.port or device.port
     if not port:
         raise FoldfabError(f"{device.name} has no port: give --port PORT (a serial port such as /dev/ttyUSB0, "
                            f"or the simulated plotter sim://), or set port in {device.source}")
+    info = fabrication_report(fab, device)
     if args.preview:
         _write_preview(fab, device, Path(args.preview))
-    prompting = [False]
+        info["written"] = args.preview
     operator = _operator(args, prompting)
     if fab.program.pauses and operator is None:
         raise FoldfabError(f"this job pauses {len(fab.program.pauses)} time(s) for the operator "
                            f"({fab.program.pauses[0].message}); run it on a terminal, or pass --yes "
                            "to continue at every pause without asking")
-    cancel = threading.Event()
+    print(json.dumps({"event": "report", **info}) if args.json else
+          format_report(info) + (f"\nwrote        {args.preview}" if args.preview else ""), flush=True)
+    _load_sheet(args, port, fab.plan.sheet, device.name, cancel, prompting)
+    checkpoint()
+    seen: dict = {}
+    show = reporter(sys.stdout, args.json)
 
-    def interrupt(signum, frame):  # first Ctrl-C: stop safely; at a prompt or a second time: now
-        if cancel.is_set() or prompting[0]:
-            raise KeyboardInterrupt
-        cancel.set()
-        try:
-            print("\nfoldfab: stopping: finishing the current command and lifting the tool "
-                  "(Ctrl-C again to stop waiting)", file=sys.stderr)
-        except OSError:  # the terminal was closed (SIGHUP)
-            pass
+    def events(event) -> None:
+        seen.setdefault(event.kind, event)
+        seen["last"] = event
+        show(event)
 
-    # a kill (SIGTERM) or a closed terminal (SIGHUP) stops as safely as Ctrl-C, and saves the state
-    stops = [s for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
-    previous = {name: signal.signal(getattr(signal, name), interrupt) for name in stops}
+    sending[0] = True
     try:
-        plot(fab.program, device, job=args.job, port=port, resume=args.resume, baudrate=args.baud,
-             xonxoff=args.xonxoff, rtscts=args.rtscts, events=reporter(sys.stdout, args.json),
-             cancel=cancel, operator=operator)
+        result = plot(fab.program, device, job=args.job, port=port, resume=args.resume, baudrate=args.baud,
+                      xonxoff=args.xonxoff, rtscts=args.rtscts, events=events, cancel=cancel, operator=operator)
     except PlotStopped as stop:
         message = str(stop)
         if stop.token:
@@ -308,10 +355,38 @@ def cmd_plot(args: argparse.Namespace) -> int:
     except ResumeNotStarted as exc:  # once the fault is mended, the same command finishes the job
         raise FoldfabError(f"{exc}; nothing was sent, and the resume token stays valid: "
                            f"{shlex.join(_resume_command(args, port, exc.token))}") from None
-    finally:
-        for name, handler in previous.items():
-            signal.signal(getattr(signal, name), handler)
+    from foldfab.progress import plot_summary
+
+    summary = plot_summary(seen.get("start"), seen["last"], result.waited)
+    print(json.dumps({"event": "summary", **summary}) if args.json else format_plot_summary(summary), flush=True)
     return 0
+
+
+def _load_sheet(args: argparse.Namespace, port: str, sheet, device: str, cancel, prompting: list[bool]) -> None:
+    """On a terminal, without --yes and on a real plotter (not ``sim://``): the operator loads
+    the sheet and presses Enter; Ctrl-C, end of input or a signal there stop with nothing sent."""
+    if args.yes or port.startswith("sim://") or not sys.stdin.isatty():
+        return
+    what = ("Check the partly drawn sheet is still in place" if args.resume else
+            f"Load a {sheet[0]:g} x {sheet[1]:g} mm sheet")
+    print(f"{what} on the {device}, then press Enter to start (Ctrl-C: stop): ", end="", file=sys.stderr,
+          flush=True)
+    prompting[0] = True  # a signal now raises KeyboardInterrupt in input()
+    try:
+        if cancel.is_set():
+            raise _NotStarted
+        input()
+    except (EOFError, KeyboardInterrupt):
+        raise _NotStarted from None
+    finally:
+        prompting[0] = False
+
+
+def format_plot_summary(summary: dict) -> str:
+    """The line ``foldfab plot`` prints when the job is done."""
+    waited = f", {summary['waited_s']:.1f} s waiting for the operator" if summary["waited_s"] else ""
+    return (f"plotted      {summary['drawn_mm']:.1f} mm drawn, {summary['pen_lifts']} pen lifts, in "
+            f"{summary['time_s']:.1f} s (estimate {summary['estimated_time_s']:.1f} s){waited}")
 
 
 def _resume_command(args: argparse.Namespace, port: str, token: str) -> list[str]:
@@ -359,7 +434,8 @@ def _add_plot_parser(sub) -> None:
     plot.add_argument("--rtscts", action=argparse.BooleanOptionalAction, default=None,
                       help="hardware flow control on the port (default: the profile's)")
     plot.add_argument("--resume", type=_token, metavar="TOKEN", help="finish a stopped plot (foldfab printed the token)")
-    plot.add_argument("--yes", action="store_true", help="without a terminal, continue at every pause")
+    plot.add_argument("--yes", action="store_true", help="start without asking to load the sheet; without a "
+                      "terminal, continue at every pause")
     plot.add_argument("--json", action="store_true", help="progress as JSON lines on stdout")
     plot.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
     _add_scale_arg(plot)
@@ -549,25 +625,33 @@ class QueueConsole:
         print(f"job {job.id} {state}: {message}", flush=True)
 
 
-def _stop_like_ctrl_c(signum, frame) -> None:
-    raise KeyboardInterrupt
-
-
 def cmd_queue_run(args: argparse.Namespace) -> int:
     """Plot queued jobs (or rehearse them on simulated plotters with --dry-run).  SIGTERM (a service
-    manager's stop) acts as Ctrl-C: the tool is lifted and the job is left interrupted, to resume."""
+    manager's stop) and SIGHUP (a closed terminal) act as Ctrl-C: the tool is lifted and the job is
+    left interrupted, to resume; the handlers come first, so a signal while starting ends as cleanly."""
     import signal
 
-    from foldfab.errors import FoldfabError
-    from foldfab.worker import Worker, WorkerOptions, rehearse
+    worker = []  # the Worker once it exists: a signal then stops it through events, never lost
 
-    options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
-    store, console = _queue_store(args), QueueConsole(rehearsal=args.dry_run)
-    previous = signal.signal(signal.SIGTERM, _stop_like_ctrl_c)
+    def interrupt(signum, frame) -> None:  # a second signal: stop waiting for the safe stop
+        if not worker or worker[0].interrupting:
+            raise KeyboardInterrupt
+        worker[0].interrupt()
+
+    stops = [getattr(signal, s) for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    previous = {sig: signal.signal(sig, interrupt) for sig in stops}
     try:
-        summary = rehearse(store, console, options) if args.dry_run else Worker(store, console, options).run()
+        from foldfab.errors import FoldfabError
+        from foldfab.worker import Worker, WorkerOptions, rehearse
+
+        options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
+        store, console = _queue_store(args), QueueConsole(rehearsal=args.dry_run)
+        if not args.dry_run:
+            worker.append(Worker(store, console, options))
+        summary = rehearse(store, console, options) if args.dry_run else worker[0].run()
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     if not summary.ended:
         print(f"nothing to run in {store.location}" + (" for these filters" if args.device or args.port else ""))
         return 0

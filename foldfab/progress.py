@@ -139,6 +139,16 @@ class JobProgress:
         )
 
 
+def plot_summary(start: ProgressEvent | None, done: ProgressEvent, waited: float) -> dict:
+    """What a finished plot did, from its first and last events: seconds taken (``waited`` of
+    them for the operator) against the estimate, mm drawn and pen lifts (one per stroke), of
+    this run only (a resume counts what it sent)."""
+    begin = start if start is not None else done
+    return {"time_s": round(done.elapsed, 1), "waited_s": round(waited, 1),
+            "estimated_time_s": round(begin.eta, 1), "drawn_mm": round(done.drawn - begin.drawn, 1),
+            "pen_lifts": done.strokes_done - begin.strokes_done}
+
+
 def clock(seconds: float) -> str:
     """``m:ss`` or ``h:mm:ss``."""
     seconds = int(round(seconds))

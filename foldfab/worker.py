@@ -287,10 +287,22 @@ class Worker:
         self.id = WorkerId.current()
         self.interrupted: dict[int, float] = {}  # jobs this worker saw interrupted or lost, and when
         self.stopping = threading.Event()
+        self.interrupting = False
+        self._cancel: threading.Event | None = None  # the running job's
 
     def stop(self) -> None:
         """Claim no more jobs (the one running goes on to its end)."""
         self.stopping.set()
+
+    def interrupt(self) -> None:
+        """Stop as Ctrl-C does, safe to call from a signal handler: the running job stops safely
+        (tool lifted) and is left interrupted, and :meth:`run` then raises KeyboardInterrupt.
+        Setting events, unlike raising in the handler, cannot be lost inside a library call
+        (an exception raised in SQLite's callback becomes a database error)."""
+        self.interrupting = True
+        self.stopping.set()
+        if self._cancel is not None:
+            self._cancel.set()
 
     def run(self) -> WorkerSummary:
         """Claim and plot jobs until the mode says stop; Ctrl-C interrupts the job and stops."""
@@ -300,7 +312,7 @@ class Worker:
                                      exclude=self._skipped())
             if claim is None:
                 if self.options.mode != "follow":
-                    return summary
+                    return self._ended(summary)
                 self.stopping.wait(self.options.poll)
                 continue
             state = self.run_job(claim)
@@ -308,7 +320,12 @@ class Worker:
             if state in ("interrupted", "lost"):  # not again at once: the same would happen
                 self.interrupted[claim.job.id] = time.monotonic()
             if self.options.mode == "once":
-                return summary
+                return self._ended(summary)
+        return self._ended(summary)
+
+    def _ended(self, summary: WorkerSummary) -> WorkerSummary:
+        if self.interrupting:
+            raise KeyboardInterrupt
         return summary
 
     def _skipped(self) -> list[int]:
@@ -320,7 +337,9 @@ class Worker:
     def run_job(self, claim: Claim) -> str:
         """Plot one claimed job to its end; return the state it ended in."""
         job = claim.job
-        cancel = threading.Event()
+        cancel = self._cancel = threading.Event()
+        if self.interrupting:
+            cancel.set()
         heartbeat = _Heartbeat(self.store, self.id, job.id, self.options, cancel)
         try:
             device = load_snapshot_device(claim.snapshot)
@@ -466,6 +485,8 @@ class _Tracker:
         while not control.lost:
             if control.cancel_requested:
                 self.heartbeat.cancel_requested = True
+                return False
+            if self.worker.interrupting:
                 return False
             if control.state == "running":  # continued: here or with foldfab queue continue
                 if confirmed is not None:

@@ -194,12 +194,20 @@ def test_worker_loses_a_job_it_no_longer_holds(store):
 # --- leases -----------------------------------------------------------------------------------
 
 
+def lease_over(store, timeout: float = 60.0) -> None:
+    """Wait until the only job's 0.2 s lease has run out, as the queue sees it (not for a time)."""
+    deadline = time.monotonic() + timeout
+    while store.jobs()[0].state == "running":
+        assert time.monotonic() < deadline, "the lease never ran out"
+        time.sleep(0.02)  # poll interval
+
+
 def test_expired_lease_interrupts_and_the_next_claim_resumes(store):
     fill(store, ["sim://a"], 1)
     dead, alive = WorkerId.current(), WorkerId.current()
     claim = store.claim(dead, 0.2)
     store.heartbeat(claim.job.id, dead, 0.2, acked_bytes=9, progress="stroke 1/2")
-    time.sleep(0.3)
+    lease_over(store)
     listed = store.jobs()[0]  # reads show what the next write will make of it, without writing
     assert listed.state == "interrupted" and "stopped renewing" in listed.reason
     assert store.jobs("interrupted") == [listed]
@@ -227,7 +235,7 @@ def test_cancel_requested_then_worker_dies_ends_cancelled(store):
     worker = WorkerId.current()
     claim = store.claim(worker, 0.2)
     store.cancel(claim.job.id)
-    time.sleep(0.3)
+    lease_over(store)
     assert store.jobs()[0].state == "cancelled"
     assert store.claim(worker, 30) is None
     assert store.job(claim.job.id).state == "cancelled"

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from processes import wait_for_handler
 
 from foldfab.cli import main
 from foldfab.design import load_design
@@ -65,6 +66,7 @@ class Console:
         self.answers = answers
         self.lines: list[str] = []
         self.events = 0
+        self.asked = 0
 
     def job_started(self, job, note):
         self.lines.append(f"start {job.id} {note}")
@@ -76,6 +78,7 @@ class Console:
         self.lines.append(f"pause {job.id} {message}")
 
     def answer(self, timeout):
+        self.asked += 1
         if self.answers:
             return self.answers.pop(0)
         time.sleep(min(timeout, 0.05))
@@ -200,8 +203,10 @@ def test_once_and_filters(store, snapshots):
 def test_follow_waits_for_new_jobs(store, snapshots):
     plotter = FakePlotter()
     worker = Worker(store, Console(), WorkerOptions(mode="follow", poll=0.05), runner=plotter)
+    looked, claim = [], store.claim
+    store.claim = lambda *args, **kw: looked.append(1) or claim(*args, **kw)
     thread = in_thread(worker)
-    time.sleep(0.2)
+    wait_for(lambda: len(looked) >= 2)  # it found nothing and looked again: it follows
     store.add([NewJob(snapshots[("grbl", "force")], "sim://a")])
     wait_for(lambda: store.job(1).state == "done")
     worker.stop()
@@ -226,7 +231,8 @@ def test_two_sided_job_waits_until_queue_continue(store, snapshots, capsys):
     assert abs(job.percent - 100 * job.acked_bytes / job.program_bytes) > 1
     assert main(["queue", "list", "--queue", str(store.path)]) == 0
     assert f"{job.percent:5.1f}%" in capsys.readouterr().out
-    time.sleep(0.3)
+    asked = console.asked
+    wait_for(lambda: console.asked >= asked + 3)  # the worker looked for an answer three more times
     assert store.job(1).state == "waiting"  # still: nobody answered
     assert main(["queue", "continue", "1", "--queue", str(store.path)]) == 0
     assert "job 1 continues on worker" in capsys.readouterr().out
@@ -572,7 +578,23 @@ def test_cancel_of_a_running_job_lifts_the_tool_on_the_real_engine(store, snapsh
     assert 0 < len(plotter.strokes) < len(original_strokes(snap))
 
 
-def test_sigterm_stops_the_worker_safely_and_the_job_resumes(tmp_path):
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
+def test_a_signal_while_the_worker_starts_stops_it_cleanly(sig, tmp_path):
+    """The worker's handlers come before its imports: a signal while it starts ends it with exit
+    130 and one line, no traceback, and the job stays queued."""
+    queue = ["--queue", str(tmp_path / "q.sqlite3")]
+    foldfab("queue", "add", str(HEXAGON), "--device", "hp7475a", "--port", "sim://hp7475a?time=fast", *queue)
+    worker = subprocess.Popen(FOLDFAB + ["queue", "run", *queue], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True)
+    wait_for_handler(worker, signal.SIGHUP)
+    worker.send_signal(getattr(signal, sig))
+    out, err = worker.communicate(timeout=60)
+    assert worker.returncode == 130 and err == "foldfab: interrupted\n", err
+    assert SqliteQueueStore(tmp_path / "q.sqlite3").job(1).state == "queued"
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
+def test_a_signal_stops_the_worker_safely_and_the_job_resumes(sig, tmp_path):
     queue = ["--queue", str(tmp_path / "q.sqlite3")]
     perforated = tmp_path / "perforated.toml"
     perforated.write_text(HEXAGON.read_text().replace('strategy = "force"', 'strategy = "perforate"'))
@@ -582,11 +604,11 @@ def test_sigterm_stops_the_worker_safely_and_the_job_resumes(tmp_path):
     worker = subprocess.Popen(FOLDFAB + ["queue", "run", *queue], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                               text=True)
     wait_for(lambda: store.job(1).acked_bytes > 0, timeout=60)
-    worker.send_signal(signal.SIGTERM)
+    worker.send_signal(getattr(signal, sig))
     out, err = worker.communicate(timeout=60)
-    assert worker.returncode == 130, err
+    assert worker.returncode == 130 and "Traceback" not in err, out + err
     job = store.job(1)
-    assert job.state == "interrupted" and "the worker was stopped: stopped by Ctrl-C" in job.reason
+    assert job.state == "interrupted" and "the worker was stopped: stopped on request" in job.reason
     assert "could not lift" not in job.reason and 0 < job.acked_bytes < job.program_bytes
 
 

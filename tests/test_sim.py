@@ -872,8 +872,10 @@ def test_a_session_reopened_resets_the_board_as_it_is_now():
     sim = port.simulator
     end = sim.next_event()
     assert sim.clock.now() < end < math.inf  # closed while the board still moves
-    while sim.clock.now() <= end:
-        time.sleep(0.005)
+    deadline = time.monotonic() + 60
+    while sim.clock.now() <= end:  # until the board is at rest
+        assert time.monotonic() < deadline, "the simulated board never came to rest"
+        time.sleep(0.005)  # poll interval
     again = open_port(url.format(1), timeout=2)
     assert again.simulator is sim
     assert again.read_until(b"help]\r\n") == BANNER

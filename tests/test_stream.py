@@ -9,6 +9,7 @@ write of anything but ``bytes`` and counts GRBL's unacknowledged bytes.
 from __future__ import annotations
 
 import functools
+import queue
 import time
 import re
 import signal
@@ -334,17 +335,31 @@ def test_foldfab_loses_nothing_over_a_pseudo_terminal(case, xonxoff_device, pty_
     assert port.max_in_flight <= GRBL_RX_BUFFER
 
 
-def test_a_naive_sender_loses_data_over_a_pseudo_terminal(pty_plotter, xonxoff_device):
-    """The same pty plotter overruns when its handshake is ignored."""
+def test_a_naive_sender_loses_data_over_a_pseudo_terminal():
+    """The same pty plotter overruns when its handshake is ignored (waits for the first lost
+    byte, not for a time)."""
+    from foldfab.sim import create_simulator, parse_options
+    from foldfab.sim.pty import serve_pty
+
     device = load_device("hp7475a")
     fab = fabricated(str(ROOT / "jobs/hexagon-fig8a.toml"), "hp7475a")
-    path, proc, record = pty_plotter("hp7475a", "buffer=256", time="real")
-    port = open_port(path, device)
-    port.write(fab.program.encode())
-    port.flush()
-    port.close()
-    time.sleep(len(fab.program.text) / 960 + 1.0)
-    assert stop_pty(proc, record)["stats"]["bytes_lost"] > 0
+    sim = create_simulator(device, parse_options([("time", "real"), ("buffer", "256"), ("sheet", "A3")], "test"))
+    stop, paths = threading.Event(), queue.Queue()
+    server = threading.Thread(target=serve_pty, args=(sim, paths.put, stop), daemon=True)
+    server.start()
+    try:
+        port = open_port(paths.get(timeout=20), device)
+        port.write(fab.program.encode())
+        port.flush()
+        deadline = time.monotonic() + 4 * len(fab.program.text) / 960 + 60
+        while sim.stats.bytes_lost == 0:
+            assert time.monotonic() < deadline and sim.stats.bytes_received < len(fab.program.text), \
+                "every byte arrived and none was lost"
+            time.sleep(0.02)  # poll interval
+        port.close()
+    finally:
+        stop.set()
+        server.join(20)
 
 
 # --- GRBL --------------------------------------------------------------------------------------
