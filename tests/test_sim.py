@@ -710,6 +710,8 @@ def test_options_are_checked():
     for key, value in (("noise", "2"), ("time", "slow"), ("buffer", "-1"), ("nosie", "0.1")):
         with pytest.raises(FoldfabError, match=key):
             parse_options([(key, value)])
+    with pytest.raises(FoldfabError, match="unknown option 'nosie'; did you mean 'noise'"):
+        parse_options([("nosie", "0.1")])
     register_handlers()
     with pytest.raises(serial.SerialException, match="unknown option"):
         serial.serial_for_url("sim://grbl?bogus=1")
