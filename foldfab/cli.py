@@ -654,7 +654,8 @@ def _add_queue_parser(sub) -> None:
                        help="keep running, waiting for new jobs")
     run.set_defaults(mode="until-empty")
     run.add_argument("--dry-run", action="store_true",
-                     help="stream every runnable job to a simulated plotter of its device; the queue is not changed")
+                     help="stream every runnable job (one with --once) to a simulated plotter of its device; the queue "
+                          "is not changed")
     lease = _seconds_from(MIN_LEASE, f"expected at least {MIN_LEASE:g} seconds ({LEASE_HEARTBEATS} of the "
                                      f"worker's heartbeats, one every {DEFAULT_HEARTBEAT:g} s)")
     run.add_argument("--lease", type=lease, default=DEFAULT_LEASE, metavar="SECONDS",
