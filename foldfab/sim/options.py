@@ -5,7 +5,7 @@ Every option, its type and meaning (the fault options describe what a test provo
 =====================  ================================================================
 ``time``               ``real`` (default), ``fast`` (the virtual clock runs ``speedup``
                        times the wall clock) or ``instant`` (only blocking host calls
-                       move it; ``sim://`` only)
+                       move it; on a pty, the device runs ahead while the host is silent)
 ``speedup``            ``fast`` only: how many virtual seconds per wall second (50)
 ``sheet``              sheet the strokes are reported on: ``A3``, ``A4 landscape``,
                        ``297x420`` (default: the profile's)
