@@ -7,7 +7,6 @@ it into a one-line message and exit code 2, never a traceback.
 
 from __future__ import annotations
 
-import difflib
 from typing import Iterable
 
 
@@ -31,6 +30,8 @@ def unknown_key(given: Iterable[str], known: Iterable[str], form: str = "{}") ->
     unknown = sorted(set(given) - set(known))
     if not unknown:
         return None
+    import difflib  # only for a mistake: the command line's fast path stays lean
+
     key = unknown[0]
     match = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
     hint = f"did you mean '{form.format(match[0])}'? " if match else ""

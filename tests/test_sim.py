@@ -966,3 +966,16 @@ def test_a_session_reopened_resets_the_board_as_it_is_now():
     again = open_port(url.format(2), timeout=2)
     assert again.read_until(b"unlock]\r\n") == b"ALARM:3\r\n" + BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n"
     again.close()
+
+
+def test_recorded_svg_names_strokes_by_the_layer_whose_tool_drew_them():
+    """A device gets tools, not layer names: the SVG names each stroke by the profile's layer with
+    that tool; layers sharing one tool share a name and the first one's colour."""
+    from foldfab.preview import layer_color
+    from foldfab.sim.record import layer_named
+
+    device = load_device("graphtec-ce6000")  # valley and mountain: pen 1, force 6; cut: force 18
+    stroke = interpret("IN;SP1;FS6;PD100,0;PU;FS18;PD0,100;PU;FS30;PD100,100;", device).strokes
+    names = [s.layer for s in layer_named(stroke, device)]
+    assert names == ["valley+mountain", "cut", "pen 1"]
+    assert [layer_color(n) for n in names] == ["#0000ff", "#000000", "#808080"]
