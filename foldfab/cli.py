@@ -789,7 +789,8 @@ def _add_queue_parser(sub) -> None:
                        help="keep running, waiting for new jobs")
     run.set_defaults(mode="until-empty")
     run.add_argument("--dry-run", action="store_true",
-                     help="stream every runnable job to a simulated plotter of its device; the queue is not changed")
+                     help="stream every runnable job (one with --once) to a simulated plotter of its device; the queue "
+                          "is not changed")
     lease = _seconds_from(MIN_LEASE, f"expected at least {MIN_LEASE:g} seconds ({LEASE_HEARTBEATS} of the "
                                      f"worker's heartbeats, one every {DEFAULT_HEARTBEAT:g} s)")
     run.add_argument("--lease", type=lease, default=DEFAULT_LEASE, metavar="SECONDS",
@@ -823,7 +824,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        serve_pty(sim, lambda path: print(path, flush=True), stop)
+        serve_pty(sim, lambda path: print(path, flush=True), stop, lambda job: print(job.line(), flush=True))
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -841,13 +842,15 @@ def _add_sim_parser(sub) -> None:
     sim = sub.add_parser("sim", help="run a simulated plotter on a pseudo-terminal",
                          description="Serve a simulated plotter of a device profile on a pseudo-terminal: "
                                      "the first line printed is its path (e.g. /dev/pts/5), which any "
-                                     "program opens like the real port.  Runs until interrupted, then "
-                                     "writes the recordings and prints the statistics.")
+                                     "program opens like the real port.  Prints a line per job it served "
+                                     "(bytes received, length drawn, time on its clock); runs until "
+                                     "interrupted, then writes the recordings and prints the statistics.")
     sim.add_argument("device", metavar="NAME", help="device profile: a built-in name, a profile in your "
                                                     "config folder, or a .toml path")
-    sim.add_argument("--pty", action="store_true", required=True, help="serve on a pseudo-terminal")
-    sim.add_argument("--time", choices=("real", "fast"), default="real",
-                     help="real: at the plotter's own speed; fast: 50 times faster (the statistics stay true)")
+    sim.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (the default and only mode)")
+    sim.add_argument("--time", default="real", metavar="MODE",
+                     help="real: at the plotter's own speed; fast: 50 times faster (-o speedup=N); instant: as "
+                          "fast as it can be simulated; the statistics stay true (as sim://?time=)")
     sim.add_argument("-o", "--option", action="append", default=[], metavar="KEY=VALUE",
                      help="simulator option, as in sim:// URLs (noise=0.001, stall=5, flow=xonxoff, ...); repeatable")
     sim.add_argument("--record", metavar="OUT.json", help="write the statistics and drawn strokes as JSON")

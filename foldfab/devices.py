@@ -52,9 +52,9 @@ import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
-from foldfab.errors import FoldfabError
+from foldfab.errors import FoldfabError, unknown_key
 from foldfab.plan import Tool
 from foldfab.xdg import foldfab_dir
 
@@ -273,7 +273,7 @@ class DeviceProfile:
             )
         base = self.layers[like]
         values = {key: getattr(base, key) for key in _TOOL_KEYS}
-        reader = _Reader(dict(overrides or {}), source, f"layers.{layer_name}.")
+        reader = _Reader(dict(overrides or {}), source, f"layers.{layer_name}.", _TOOL_KEYS)
         values.update({key: reader.take(key, *_TOOL_KEYS[key]) for key in _TOOL_KEYS
                        if key in reader.data})
         reader.done()
@@ -356,7 +356,7 @@ def _load_file(path: Path) -> DeviceProfile:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise FoldfabError(f"{path}: not valid TOML ({exc}); fix the syntax") from None
-    return _parse(_Reader(data, str(path)))
+    return _parse(_Reader(data, str(path), keys=_ROOT_KEYS))
 
 
 # --- validation ----------------------------------------------------------------------
@@ -367,8 +367,13 @@ _MISSING = object()
 class _Reader:
     """Takes keys out of one TOML table, naming file and dotted key in every error."""
 
-    def __init__(self, data: dict, file: str, prefix: str = ""):
+    def __init__(self, data: dict, file: str, prefix: str = "", keys: Iterable[str] | None = None):
+        """``keys``: every key the table may hold.  A key outside them is reported at once,
+        before a missing key it may be the misspelling of; None leaves the table open."""
         self.data, self.file, self.prefix = data, file, prefix
+        self.keys = keys
+        if keys is not None:
+            self.done()
 
     def fail(self, key: str, expected: str, value: Any, fix: str = README_HINT) -> FoldfabError:
         return FoldfabError(
@@ -389,7 +394,7 @@ class _Reader:
             raise self.fail(key, expected, value)
         return result
 
-    def table(self, key: str, required: bool = True) -> _Reader | None:
+    def table(self, key: str, required: bool = True, keys: Iterable[str] | None = None) -> _Reader | None:
         if key not in self.data:
             if required:
                 raise FoldfabError(
@@ -399,14 +404,15 @@ class _Reader:
         value = self.data.pop(key)
         if not isinstance(value, dict):
             raise self.fail(key, "a table", value)
-        return _Reader(value, self.file, f"{self.prefix}{key}.")
+        return _Reader(value, self.file, f"{self.prefix}{key}.", keys)
 
     def done(self) -> None:
-        if self.data:
-            key = sorted(self.data)[0]
+        """Fail on a key left over (once all are taken) or outside the declared keys."""
+        found = unknown_key(self.data, self.keys or ())
+        if found:
             raise FoldfabError(
-                f"{self.file}: unknown key '{self.prefix}{key}'; remove it or fix its spelling "
-                f"({README_HINT})"
+                f"{self.file}: unknown key '{self.prefix}{found[0]}'; remove it or fix its spelling: "
+                f"{found[1]} ({README_HINT})"
             )
 
 
@@ -524,6 +530,12 @@ def _corner_name(ex, ey) -> str:
     return f"{'top' if y == 0 else 'bottom'}-{'left' if x == 0 else 'right'}"
 
 
+_ROOT_KEYS = ("name", "model", "protocol", "dialect", "units_per_mm", "x_axis", "y_axis", "origin", "origin_offset",
+              "plottable_area", "sheet", "port", "tool_changer", "serial", "buffer", "motion", "limits", "gcode",
+              "layers")
+"""Every key at the top of a device profile."""
+
+
 def _parse(root: _Reader) -> DeviceProfile:
     name = root.take("name", "a device name", _text)
     model = root.take("model", "a model description", _text)
@@ -560,7 +572,7 @@ def _parse(root: _Reader) -> DeviceProfile:
     port = root.take("port", "a serial port or pyserial URL", _text, None)
     tool_changer = root.take("tool_changer", "true or false", _boolean, False)
 
-    ser = root.table("serial")
+    ser = root.table("serial", keys=("baudrate", "bytesize", "parity", "stopbits", "xonxoff", "rtscts", "dsrdtr"))
     serial = SerialSettings(
         baudrate=ser.take("baudrate", "a baud rate", _integer(50)),
         bytesize=ser.take("bytesize", "5, 6, 7 or 8", _integer(5, 8), 8),
@@ -572,7 +584,7 @@ def _parse(root: _Reader) -> DeviceProfile:
     )
     ser.done()
 
-    buf = root.table("buffer")
+    buf = root.table("buffer", keys=("size", "flow_control"))
     buffer = BufferSettings(
         size=buf.take("size", "the receive buffer size in bytes", _integer(1)),
         flow_control=buf.take("flow_control", ", ".join(FLOW_CONTROLS), _choice(FLOW_CONTROLS)),
@@ -588,7 +600,8 @@ def _parse(root: _Reader) -> DeviceProfile:
                        "grbl is for G-code devices, escb for HPGL ones")
     buf.done()
 
-    mot = root.table("motion")
+    mot = root.table("motion", keys=("draw_speed", "travel_speed", "acceleration", "pen_lift_time", "park",
+                                        "junction_deviation", "axis_limits"))
     positive = _number(0, open_lo=True)
     motion = Motion(
         draw_speed=mot.take("draw_speed", "mm/s > 0", positive),
@@ -608,7 +621,7 @@ def _parse(root: _Reader) -> DeviceProfile:
                        "move the park position into the plottable area")
     mot.done()
 
-    lim = root.table("limits", required=False)
+    lim = root.table("limits", required=False, keys=("pen", "force", "speed"))
     limits = Limits()
     if lim is not None:
         limits = Limits(**{k: lim.take(k, "[lo, hi] with lo <= hi", _range, None)
@@ -616,7 +629,7 @@ def _parse(root: _Reader) -> DeviceProfile:
         lim.done()
 
     gcode = None
-    gc = root.table("gcode", required=protocol == "gcode")
+    gc = root.table("gcode", required=protocol == "gcode", keys=("pen_up", "z_speed"))
     if gc is not None and protocol != "gcode":
         raise root.fail("gcode", "no [gcode] table in an HPGL profile", "[gcode]", "remove it")
     if gc is not None:
@@ -641,7 +654,7 @@ def _parse(root: _Reader) -> DeviceProfile:
         if layer not in layers_reader.data:
             raise FoldfabError(f"{root.file}: missing table '[layers.{layer}]'; add it, {README_HINT}")
     for layer in list(layers_reader.data):
-        layers[layer] = _parse_layer(profile, layers_reader.table(layer))
+        layers[layer] = _parse_layer(profile, layers_reader.table(layer, keys=(*_TOOL_KEYS, "pen_down")))
     root.done()
     return replace(profile, layers=MappingProxyType(layers))
 

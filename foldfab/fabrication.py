@@ -60,7 +60,8 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
     """Validate a job's ``[fabrication]`` table; errors name the key."""
     from foldfab.optimize import METHODS
 
-    table = TomlTable(source, "fabrication", data)
+    table = TomlTable(source, "fabrication", data, ("strategy", "sheet", "margin", "rotate", "scale", "optimize",
+                                                    "flip_edge", "perforate", "layers", "max_strokes"))
     defaults = FabricationSpec()
     strategy = table.string("strategy", "force", choices=STRATEGIES)
     sheet = None
@@ -84,7 +85,7 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
     perforation = dict(defaults.perforation)
     clearance = defaults.clearance
     if table.has("perforate"):
-        sub = TomlTable(source, "fabrication.perforate", table.get("perforate"))
+        sub = TomlTable(source, "fabrication.perforate", table.get("perforate"), ("valley", "mountain", "clearance"))
         for kind in ("valley", "mountain"):
             if sub.has(kind):
                 pattern = sub.get(kind)
@@ -95,19 +96,16 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
                                    f"to {PERFORATION_MAX:g} mm, got {pattern!r}")
                 perforation[kind] = tuple(float(v) for v in pattern)
         clearance = sub.number("clearance", clearance, minimum=0.0)
-        sub.check_unknown()
     layers: dict[str, dict[str, Any]] = {}
     if table.has("layers"):
-        sub = TomlTable(source, "fabrication.layers", table.get("layers"))
+        sub = TomlTable(source, "fabrication.layers", table.get("layers"), LAYERS)
         for name in LAYERS:
             if sub.has(name):
                 value = sub.get(name)
                 if not isinstance(value, dict):
                     sub.fail(name, "expected a table of tool settings (pen, force, speed, passes)")
                 layers[name] = value
-        sub.check_unknown()
     max_strokes = table.integer("max_strokes", MAX_STROKES, minimum=1)
-    table.check_unknown()
     return FabricationSpec(strategy, sheet, margin, rotate, scale, optimize, flip_edge, perforation, clearance, layers,
                            max_strokes)
 

@@ -16,9 +16,9 @@ import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
-from foldfab.errors import FoldfabError
+from foldfab.errors import FoldfabError, unknown_key
 
 TEMPLATES = ("regular", "star", "polyline")
 LENGTH_LIMIT = 1e6
@@ -82,13 +82,17 @@ class Job:
 class TomlTable:
     """A TOML table that remembers where it came from, for error messages."""
 
-    def __init__(self, source: str, name: str, data: Any):
+    def __init__(self, source: str, name: str, data: Any, keys: Iterable[str] | None = None):
+        """``keys``: every key the table may hold in any of its forms.  A key outside them is
+        reported at once, before a missing key it may be the misspelling of."""
         self.source = source
         self.name = name
         if not isinstance(data, dict):
             self.fail(None, f"expected a table, got {_type_name(data)}")
         self.data = data
         self.used: set[str] = set()
+        if keys is not None:
+            self.check_unknown(set(keys))
 
     def where(self, key: str | None) -> str:
         return f"{self.source}: [{self.name}]" + (f".{key}" if key else "")
@@ -190,10 +194,10 @@ class TomlTable:
         return (_float(value[0]), _float(value[1]))
 
     def check_unknown(self, allowed: set[str] | None = None) -> None:
-        allowed = self.used if allowed is None else allowed
-        unknown = sorted(set(self.data) - allowed)
-        if unknown:
-            self.fail(unknown[0], f"unknown key; expected one of: {', '.join(sorted(allowed))}")
+        """Fail on the first key not in ``allowed`` (default: the keys read so far)."""
+        found = unknown_key(self.data, self.used if allowed is None else allowed)
+        if found:
+            self.fail(found[0], f"unknown key; {found[1]}")
 
 
 def _float(value: int | float) -> float:
@@ -219,6 +223,13 @@ SVG_SAMPLES_LIMIT = 100_000
 """Most points an SVG path may be sampled into (as many as a trajectory may have corners)."""
 SVG_TOLERANCE_FLOOR = 0.001
 """mm: the finest chord error an SVG curve is sampled to (a plotter's step is 0.025 mm)."""
+
+
+SVG_KEYS = ("svg", "path", "samples", "tolerance")
+PROFILE_KEYS = ("points", "offset", *SVG_KEYS)
+TRAJECTORY_KEYS = ("template", "corners", "radius", "points", "outer_radius", "inner_radius", *SVG_KEYS)
+"""Every key [profile] and [trajectory] may hold, in any form: what a typo is checked against
+before the form's own keys are read (which then reject a key of another form)."""
 
 
 def _svg_source(table: TomlTable, base: Path) -> SvgSource:
@@ -276,7 +287,6 @@ def _parse_trajectory(table: TomlTable, base: Path) -> TrajectorySpec:
 def _parse_crease(table: TomlTable) -> CreaseSpec:
     spec = CreaseSpec(flat_angle=table.number("flat_angle", 1.0, minimum=0.0, maximum=180.0),
                       glue_tab=table.number("glue_tab", 0.0, minimum=0.0, maximum=LENGTH_LIMIT))
-    table.check_unknown()
     return spec
 
 
@@ -293,22 +303,19 @@ def job_from_data(data: dict[str, Any], path: str | Path = "<job>", text: str = 
     """Validate a job's tables (what its TOML text holds), as :func:`parse_job` does."""
     path = Path(path)
     source = str(path)
-    allowed = {"design", "profile", "trajectory", "crease", "fabrication"}
-    unknown = sorted(set(data) - allowed)
-    if unknown:
-        raise FoldfabError(f"{source}: [{unknown[0]}]: unknown table; expected one of: "
-                           + ", ".join(f"[{t}]" for t in sorted(allowed)))
+    found = unknown_key(data, ("design", "profile", "trajectory", "crease", "fabrication"), "[{}]")
+    if found:
+        raise FoldfabError(f"{source}: [{found[0]}]: unknown table; {found[1]}")
     base = path.parent
-    design = TomlTable(source, "design", data.get("design", {}))
+    design = TomlTable(source, "design", data.get("design", {}), ("name", "max_faces"))
     name = design.string("name", path.stem)
     max_faces = design.integer("max_faces", None, minimum=1)
-    design.check_unknown()
     for required in ("profile", "trajectory"):
         if required not in data:
             raise FoldfabError(f"{source}: [{required}]: missing table; every job needs [profile] and [trajectory]")
-    profile = _parse_profile(TomlTable(source, "profile", data["profile"]), base)
-    trajectory = _parse_trajectory(TomlTable(source, "trajectory", data["trajectory"]), base)
-    crease = _parse_crease(TomlTable(source, "crease", data.get("crease", {})))
+    profile = _parse_profile(TomlTable(source, "profile", data["profile"], PROFILE_KEYS), base)
+    trajectory = _parse_trajectory(TomlTable(source, "trajectory", data["trajectory"], TRAJECTORY_KEYS), base)
+    crease = _parse_crease(TomlTable(source, "crease", data.get("crease", {}), ("flat_angle", "glue_tab")))
     fabrication = data.get("fabrication", {})
     if not isinstance(fabrication, dict):
         raise FoldfabError(f"{source}: [fabrication]: expected a table")

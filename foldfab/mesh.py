@@ -15,6 +15,15 @@ import numpy as np
 from foldfab.crease_pattern import CreasePattern
 
 
+GLTF_FROM_FOLDFAB = np.array([[0.001, 0.0, 0.0, 0.0],
+                              [0.0, 0.0, 0.001, 0.0],
+                              [0.0, -0.001, 0.0, 0.0],
+                              [0.0, 0.0, 0.0, 1.0]])
+"""foldfab's z-up millimetres to glTF's y-up metres (glTF 2.0 §3.4): a quarter turn about x,
+(x, y, z) mm -> (x, z, -y) / 1000 m, a rotation, so faces keep their winding.  Only GLB
+needs it; STL, OBJ and PLY keep millimetres, z up."""
+
+
 def to_trimesh(cp: CreasePattern, weld: bool = True):
     """The folded state as a ``trimesh.Trimesh``; ``weld`` joins coincident vertices (the seam).
 

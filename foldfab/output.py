@@ -38,9 +38,12 @@ def design_file_data(design: Design, kind: str, suffix: str = "") -> bytes:
 
         return oripa.dumps(cp).encode()
     if kind == "mesh":
-        from foldfab.mesh import to_trimesh
+        from foldfab.mesh import GLTF_FROM_FOLDFAB, to_trimesh
 
-        data = to_trimesh(cp).export(file_type=suffix.lower().lstrip("."))
+        mesh, file_type = to_trimesh(cp), suffix.lower().lstrip(".")
+        if file_type == "glb":
+            mesh.apply_transform(GLTF_FROM_FOLDFAB)
+        data = mesh.export(file_type=file_type)
         return data.encode() if isinstance(data, str) else data
     raise ValueError(kind)  # pragma: no cover - the callers offer only the kinds above
 

@@ -39,7 +39,7 @@ def render_preview(interpretation: Interpretation, device: DeviceProfile,
     legend: list[tuple[str | None, str]] = [(None, f"{device.name}: {device.model}")]
     legend += [(None, note) for note in notes]
     for name, stats in times.layers.items():
-        legend.append((COLORS.get(name, OTHER_COLOR),
+        legend.append((layer_color(name),
                        f"{name}: {stats.drawn_length:.0f} mm drawn, {stats.pen_lifts} pen lift{'' if stats.pen_lifts == 1 else 's'}, "
                        f"{stats.travel_length:.0f} mm travel, {_duration(stats.time)}"))
     legend.append((None, f"total: {_duration(times.total)} (lower bound "
@@ -69,7 +69,7 @@ def render_preview(interpretation: Interpretation, device: DeviceProfile,
                    'stroke-width="0.15" stroke-dasharray="1,1"/>')
     groups: dict[str, list[str]] = {}
     for stroke in interpretation.strokes:
-        color = COLORS.get(stroke.layer, OTHER_COLOR)
+        color = layer_color(stroke.layer)
         points = stroke.points.tolist()
         if len(points) == 1:
             element = f'<circle cx="{f(points[0][0])}" cy="{f(points[0][1])}" r="0.3" fill="{color}"/>'
@@ -77,7 +77,7 @@ def render_preview(interpretation: Interpretation, device: DeviceProfile,
             element = '<polyline points="' + " ".join(f"{f(x)},{f(y)}" for x, y in points) + '"/>'
         groups.setdefault(stroke.layer, []).append(element)
     for index, (name, elements) in enumerate(groups.items()):
-        color = COLORS.get(name, OTHER_COLOR)
+        color = layer_color(name)
         out.append(f'<g id="layer-{index + 1}" data-layer={quoteattr(name)} fill="none" '
                    f'stroke="{color}" stroke-width="0.3" stroke-linejoin="round">')
         out.extend(elements)
@@ -98,6 +98,11 @@ def render_preview(interpretation: Interpretation, device: DeviceProfile,
     out.append("</g>")
     out.append("</svg>")
     return "\n".join(out) + "\n"
+
+
+def layer_color(name: str) -> str:
+    """A layer's colour; layers drawn with one tool ("valley+mountain") take the first one's."""
+    return COLORS.get(name.split("+")[0], OTHER_COLOR)
 
 
 def _f(value: float) -> str:

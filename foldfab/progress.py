@@ -45,8 +45,11 @@ class ProgressEvent:
     layer: str
     """Layer being drawn at the acknowledged offset ("setup" before the first one)."""
     elapsed: float
+    """Seconds since the job started, on the clock the plotter runs on (a ``sim://`` simulator's
+    virtual clock, else the wall clock: :func:`foldfab.stream.plotter_clock`)."""
     eta: float
-    """Seconds left: the estimate of what remains, scaled by how fast the job has gone so far."""
+    """Seconds left on the same clock: the estimate of what remains, scaled by how fast the job
+    has gone so far."""
     message: str = ""
 
     @property

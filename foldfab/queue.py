@@ -249,6 +249,14 @@ def load_snapshot_device(snapshot: Snapshot) -> DeviceProfile:
         return load_device(path)
 
 
+def drawn_length(snapshot: Snapshot) -> float:
+    """mm the snapshot's program draws in all: known when it is queued, so a queued job's
+    ``drawn_total_mm`` is its length before any worker has run it."""
+    from foldfab.interpret import interpret
+
+    return sum(stroke.length for stroke in interpret(snapshot.program, load_snapshot_device(snapshot)).strokes)
+
+
 # --- the interface -------------------------------------------------------------------------
 
 
@@ -627,9 +635,10 @@ class SqliteQueueStore:
                 raise ValueError(f"priority must be from {PRIORITIES[0]} to {PRIORITIES[1]} and copies from 1 "
                                  f"to {MAX_COPIES}, got {new.priority} and {new.copies}")
         ids = []
+        lengths = [drawn_length(new.snapshot) for new in jobs]  # before the write lock: no writer waits on it
         with self._write(create=True) as db:
             now = time.time()
-            for new in jobs:
+            for new, length in zip(jobs, lengths):
                 snap = new.snapshot
                 snapshot_id = db.execute(
                     "INSERT INTO snapshots (name, job_path, device, program_bytes, program_sha256, program_meta, "
@@ -638,9 +647,9 @@ class SqliteQueueStore:
                      _program_meta(snap.program), snap.job_text, snap.device_text, snap.program.text)).lastrowid
                 for copy in range(1, new.copies + 1):
                     job_id = db.execute(
-                        "INSERT INTO jobs (snapshot_id, port, priority, copy, copies, created, updated) "
-                        "VALUES (?, ?, ?, ?, ?, ?, ?)",
-                        (snapshot_id, new.port, new.priority, copy, new.copies, now, now)).lastrowid
+                        "INSERT INTO jobs (snapshot_id, port, priority, copy, copies, created, updated, drawn_total_mm) "
+                        "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                        (snapshot_id, new.port, new.priority, copy, new.copies, now, now, length)).lastrowid
                     label = f" (copy {copy} of {new.copies})" if new.copies > 1 else ""
                     self._event(db, job_id, "queued",
                                 f"queued{label}: {snap.job_path} on {snap.device} at {new.port}, priority "

@@ -276,6 +276,16 @@ def char_time(port) -> float:
     return bits / float(port.baudrate)
 
 
+def plotter_clock(port) -> Callable[[], float]:
+    """The clock the plotter on ``port`` runs on, in seconds: a simulator's virtual clock
+    (``sim://`` at ``time=fast`` or ``instant`` runs faster than the wall clock), else the
+    wall clock.  A job's elapsed time, its waits and so its ETA are all read on it, so the ETA
+    is in the same seconds as the estimate it scales and as the time the job then takes; a
+    rehearsal on a fast simulator tells how long the real plotter will take."""
+    simulator = getattr(port, "simulator", None)
+    return simulator.clock.now if simulator is not None else time.monotonic
+
+
 class _Sender:
     """What both protocols share: events, timing, replies, stopping."""
 
@@ -297,6 +307,8 @@ class _Sender:
         """:attr:`acked` as the last progress event gave it (and a queue may have saved)."""
         self.pauses_done = 0
         self.waited = 0.0
+        self.clock = plotter_clock(port)
+        self.clock_started = self.clock()
         self.started = time.monotonic()
         self.last_event = 0.0
         self.alive = self.started  # the last sign of progress from the plotter
@@ -359,7 +371,8 @@ class _Sender:
     # -- time and events ---------------------------------------------------------------------
     @property
     def elapsed(self) -> float:
-        return time.monotonic() - self.started
+        """Seconds of the job on the plotter's clock (see :func:`plotter_clock`)."""
+        return self.clock() - self.clock_started
 
     def emit(self, kind: str, message: str = "") -> None:
         self.last_event = time.monotonic()
@@ -391,9 +404,9 @@ class _Sender:
         self.emit("pause", message)
         if self.operator is None:
             raise _Fault(f"stopped at a pause: nobody to answer it ({message})")
-        start = time.monotonic()
+        start = self.clock()
         go = self.operator(message)
-        self.waited += time.monotonic() - start
+        self.waited += self.clock() - start
         self.alive = time.monotonic()
         if not go:
             raise _Cancelled("stopped at a pause by the operator")

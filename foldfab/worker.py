@@ -414,35 +414,42 @@ def stopped_state(stop: StreamStopped) -> str:
 
 def rehearse(store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOptions(),
              runner: Runner = stream_runner) -> WorkerSummary:
-    """``--dry-run``: every runnable job, in claim order, streamed to a simulated plotter of its
-    device (resumed where a run would resume it; pauses answered at once).  A job that a run
-    could not start (a damaged snapshot) or that the simulated plotter stops is reported and the
-    next one rehearsed.  The queue is not changed."""
-    from foldfab.stream import StreamStopped
-
+    """``--dry-run``: every runnable job (the first only in mode ``once``, as a run would claim
+    one), in claim order, streamed to a simulated plotter of its device (resumed where a run
+    would resume it; pauses answered at once).  A job that a run could not start (a damaged
+    snapshot) or that the simulated plotter stops is reported and the next one rehearsed.  The
+    queue is not changed."""
     summary = WorkerSummary()
     for job in store.runnable(options.device, options.port):
-        try:
-            snapshot = store.snapshot(job.id)
-            device = load_snapshot_device(snapshot)
-            start = start_point(snapshot.program, device, job.acked_bytes, job.pauses_done)
-        except FoldfabError as exc:
-            ui.job_ended(job, "failed", f"cannot start: {exc}")
-            summary.add(job.id, "failed")
-            continue
-        ui.job_started(job, f"dry run on {DRY_RUN_PORT} instead of {job.port}: {start.note}")
-        state, message = "done", "the simulated plotter finished it"
-        if start.program is not None:
-            try:
-                runner(start.program, device, DRY_RUN_PORT, events=ui.progress, cancel=threading.Event(),
-                       operator=lambda text: ui.paused(job, f"{text} (answered by the dry run)") or True)
-            except StreamStopped as exc:
-                state, message = stopped_state(exc), str(exc)
-            except FoldfabError as exc:  # the simulated plotter could not be opened
-                state, message = "failed", str(exc)
-        ui.job_ended(job, state, message)
-        summary.add(job.id, state)
+        summary.add(job.id, _rehearse_job(store, ui, job, runner))
+        if options.mode == "once":
+            break
     return summary
+
+
+def _rehearse_job(store: QueueStore, ui: WorkerUI, job: JobRecord, runner: Runner) -> str:
+    """Rehearse one job (see :func:`rehearse`); the state it would end in."""
+    from foldfab.stream import StreamStopped
+
+    try:
+        snapshot = store.snapshot(job.id)
+        device = load_snapshot_device(snapshot)
+        start = start_point(snapshot.program, device, job.acked_bytes, job.pauses_done)
+    except FoldfabError as exc:
+        ui.job_ended(job, "failed", f"cannot start: {exc}")
+        return "failed"
+    ui.job_started(job, f"dry run on {DRY_RUN_PORT} instead of {job.port}: {start.note}")
+    state, message = "done", "the simulated plotter finished it"
+    if start.program is not None:
+        try:
+            runner(start.program, device, DRY_RUN_PORT, events=ui.progress, cancel=threading.Event(),
+                   operator=lambda text: ui.paused(job, f"{text} (answered by the dry run)") or True)
+        except StreamStopped as exc:
+            state, message = stopped_state(exc), str(exc)
+        except FoldfabError as exc:  # the simulated plotter could not be opened
+            state, message = "failed", str(exc)
+    ui.job_ended(job, state, message)
+    return state
 
 
 class _Tracker:

@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from foldfab.cli import main
 from foldfab.design import load_design
@@ -157,7 +159,8 @@ def check_svg(path: Path, data: dict, design) -> None:
     assert width.endswith("mm") and height.endswith("mm")
     view = [float(v) for v in root.get("viewBox").split()]
     assert view[:2] == [0, 0]
-    assert view[2] == pytest.approx(float(width[:-2])) and view[3] == pytest.approx(float(height[:-2]))
+    unit = float(width[:-2]) / view[2]  # mm per user unit
+    assert unit <= 0.1 * (1 + 1e-6) and view[3] * unit == pytest.approx(float(height[:-2]))
     children = list(root)
     assert children and all(c.tag == f"{SVG_NS}line" for c in children), "flat <line> elements only"
     for element in root.iter():
@@ -166,8 +169,16 @@ def check_svg(path: Path, data: dict, design) -> None:
 
     points, assignment, angle = fold_edge_points(data)
     lo, hi = points.reshape(-1, 2).min(axis=0), points.reshape(-1, 2).max(axis=0)
-    assert view[2] == pytest.approx(hi[0] - lo[0], abs=1e-5) and view[3] == pytest.approx(hi[1] - lo[1], abs=1e-5)
-    coords = np.array([[float(c.get(k)) for k in ("x1", "y1", "x2", "y2")] for c in children]).reshape(-1, 2, 2)
+    assert view[2] * unit == pytest.approx(hi[0] - lo[0], abs=1e-5)
+    assert view[3] * unit == pytest.approx(hi[1] - lo[1], abs=1e-5)
+    user = np.array([[float(c.get(k)) for k in ("x1", "y1", "x2", "y2")] for c in children]).reshape(-1, 2, 2)
+    # Origami Simulator's default import merges vertices closer than 3 user units (issue 18: the
+    # vase lost 363 - 186 vertices when they were written in mm): none may be that close.
+    ends = np.unique(user.reshape(-1, 2), axis=0)
+    assert len(ends) == len(design.crease_pattern.vertices), "every vertex, written once"
+    gaps = np.linalg.norm(ends[:, None] - ends[None], axis=-1) + np.eye(len(ends)) * 1e9
+    assert gaps.min() > 3, f"vertices {gaps.min():.3f} user units apart merge on import"
+    coords = user * unit
     # SVG y runs down: the sheet's y is flipped about its top edge.
     sheet = np.stack([coords[..., 0] + lo[0], hi[1] - coords[..., 1]], axis=-1)
     index = match_edges(sheet, points, 2e-6)
@@ -204,6 +215,8 @@ def check_mesh(path: Path, design) -> None:
     panel), and a surface: no edge is shared by more than two triangles."""
     cp = design.crease_pattern
     mesh = trimesh.load(path, force="mesh")
+    if path.suffix.lower() == ".glb":  # glTF is y-up in metres: back to foldfab's z-up millimetres
+        mesh.vertices = np.column_stack([mesh.vertices[:, 0], -mesh.vertices[:, 2], mesh.vertices[:, 1]]) * 1000
     triangles, owner = cp.triangles()
     assert len(mesh.faces) == int((~cp.tab_faces[owner]).sum())
     expected = np.array([cp.vertices_3d.min(axis=0), cp.vertices_3d.max(axis=0)])
@@ -305,6 +318,45 @@ def test_mesh_formats(capsys, tmp_path, suffix):
     assert f"wrote        {target}" in out
     check_mesh(target, load_design(job))
     assert [p.name for p in tmp_path.iterdir()] == [target.name]
+
+
+def glb_positions(path: Path) -> np.ndarray:
+    """The vertex positions of a one-mesh GLB, read from its chunks as any glTF viewer would."""
+    import struct
+
+    data = path.read_bytes()
+    magic, version, length = struct.unpack_from("<4sII", data)
+    assert (magic, version, length) == (b"glTF", 2, len(data))
+    json_length, kind = struct.unpack_from("<I4s", data, 12)
+    assert kind == b"JSON"
+    gltf = json.loads(data[20:20 + json_length])
+    binary = data[20 + json_length + 8:]
+    accessor = gltf["accessors"][gltf["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]
+    view = gltf["bufferViews"][accessor["bufferView"]]
+    start = view.get("byteOffset", 0) + accessor.get("byteOffset", 0)
+    assert accessor["componentType"] == 5126 and accessor["type"] == "VEC3"  # float32 triples
+    points = np.frombuffer(binary, "<f4", accessor["count"] * 3, start).reshape(-1, 3)
+    np.testing.assert_allclose(points.min(axis=0), accessor["min"], rtol=1e-6)
+    assert all("matrix" not in node and "rotation" not in node and "scale" not in node for node in gltf.get("nodes", []))
+    return points.astype(float)
+
+
+@pytest.mark.parametrize("job", ["hexagon-fig8a", "helix-fig12"])
+def test_glb_is_y_up_in_metres(capsys, tmp_path, job):
+    """Issue 18: the GLB was z-up in mm, so glTF viewers showed the column on its side, 80 m wide.
+    glTF is y-up in metres: the column stands along +y, as tall in metres as it is in mm / 1000."""
+    design = load_design(REPO / "jobs" / f"{job}.toml")
+    for name in ("m.glb", "m.stl"):
+        rc, _, err = run(capsys, "design", REPO / "jobs" / f"{job}.toml", "--mesh", tmp_path / name)
+        assert rc == 0, err
+    points = glb_positions(tmp_path / "m.glb")
+    folded = design.crease_pattern.vertices_3d
+    np.testing.assert_allclose(points.min(axis=0), [folded[:, 0].min() / 1000, folded[:, 2].min() / 1000,
+                                                    -folded[:, 1].max() / 1000], atol=1e-7)
+    np.testing.assert_allclose(points.max(axis=0), [folded[:, 0].max() / 1000, folded[:, 2].max() / 1000,
+                                                    -folded[:, 1].min() / 1000], atol=1e-7)
+    stl = trimesh.load(tmp_path / "m.stl", force="mesh")  # the other formats keep z-up millimetres
+    np.testing.assert_allclose(stl.bounds, [folded.min(axis=0), folded.max(axis=0)], atol=1e-4)
 
 
 def test_relative_output_paths_and_file_mode(capsys, tmp_path, monkeypatch):
@@ -718,3 +770,20 @@ def test_real_process_success(tmp_path):
     info = json.loads(result.stdout)
     assert info["written"] == ["h.fold"] and info["corners"] == 6
     check_fold(json.loads((tmp_path / "h.fold").read_text(encoding="utf-8")))
+
+
+@settings(max_examples=60, deadline=None)
+@given(shortest=st.floats(1e-6, 1e3), count=st.integers(2, 12), seed=st.integers(0, 2**16))
+def test_svg_user_unit_keeps_every_vertex_apart_on_import(shortest, count, seed):
+    """The SVG's user unit puts the closest two distinct vertices at least 10 units apart (Origami
+    Simulator merges under 3) and is the coarsest power of ten up to 0.1 mm that does."""
+    from foldfab.formats.svg import user_unit
+
+    rng = np.random.default_rng(seed)
+    points = np.concatenate([[[0.0, 0.0], [shortest, 0.0]], rng.uniform(2 * shortest, 3 * shortest + 100, (count, 2))])
+    gaps = np.linalg.norm(points[:, None] - points[None], axis=-1) + np.eye(len(points)) * 1e18
+    unit = user_unit(np.concatenate([points, points[:1]]))  # a repeated vertex is one vertex
+    exponent = np.log10(unit)
+    assert unit <= 0.1 and exponent == pytest.approx(round(exponent))
+    assert gaps.min() / unit >= 10 * (1 - 1e-12)
+    assert unit == 0.1 or gaps.min() / (10 * unit) < 10

@@ -99,6 +99,11 @@ def broken(tmp_path, edit) -> str:
     (lambda t: t.replace('sheet = "A4"', 'sheet = "B5"'), ["key 'sheet'", "'B5'"]),
     (lambda t: t.replace("z_speed = 10", ""), ["missing key 'gcode.z_speed'"]),
     (lambda t: t + "\n[unused]\nx = 1\n", ["unknown key 'unused'"]),
+    # a typo in a required key is named as a typo, with the closest key, not as the key missing
+    (lambda t: t.replace("baudrate =", "baudrat ="), ["unknown key 'serial.baudrat'", "did you mean 'baudrate'?"]),
+    (lambda t: t.replace("protocol =", "protocl ="), ["unknown key 'protocl'", "did you mean 'protocol'?"]),
+    (lambda t: t.replace("draw_speed =", "draw_sped ="), ["unknown key 'motion.draw_sped'", "did you mean 'draw_speed'?"]),
+    (lambda t: t.replace("pen_down = -1.0", "pen_dwn = -1.0", 1), ["did you mean 'pen_down'?"]),
     (lambda t: t.replace("name =", "name = [", 1), ["not valid TOML"]),
 ])
 def test_schema_errors_name_file_and_key(tmp_path, edit, words):

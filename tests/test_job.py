@@ -12,7 +12,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from foldfab.errors import FoldfabError
+from foldfab.errors import FoldfabError, unknown_key
 from foldfab.job import LENGTH_LIMIT, load_job, parse_job
 
 JOBS = sorted((Path(__file__).parent.parent / "jobs").glob("*.toml"))
@@ -469,3 +469,26 @@ def test_junk_values_give_an_error_naming_the_key(name, value):
     message = str(info.value)
     assert message.startswith(f"junk.toml: {key}"), message
     assert "\n" not in message
+
+
+@pytest.mark.parametrize("text, key, suggestion", [
+    ("[profile]\npionts = [[0, 0], [8, 10]]\n" + REGULAR, "[profile].pionts", "points"),  # issue 18: not "give either"
+    (PROFILE + '[trajectory]\ntemplate = "regular"\ncorners = 6\nradus = 40\n', "[trajectory].radus", "radius"),
+    (PROFILE + '[trajectory]\ntemplate = "star"\npionts = 4\nouter_radius = 5\ninner_radius = 3\n',
+     "[trajectory].pionts", "points"),
+    (PROFILE + '[trajectory]\ntempalte = "regular"\ncorners = 6\nradius = 40\n', "[trajectory].tempalte", "template"),
+    (PROFILE + REGULAR + "[fabrication]\nsheet = 'A9'\nmargn = 3\n", "[fabrication].margn", "margin"),
+    ("[desing]\nname = 'x'\n" + PROFILE + REGULAR, "[desing]", "[design]"),
+])
+def test_a_misspelt_key_is_named_before_the_key_it_hides(text, key, suggestion):
+    """A typo in a required key is reported as the unknown key with the closest known one, not as
+    the missing key (or a bad value read before the typo was noticed)."""
+    message = error_of(text)
+    assert f"{key}: unknown" in message and f"did you mean '{suggestion}'?" in message, message
+
+
+def test_unknown_key_suggests_only_close_matches():
+    assert unknown_key(["points"], ["points", "svg"]) is None
+    key, hint = unknown_key(["zzz", "pionts"], ["points", "svg"])
+    assert key == "pionts" and hint == "did you mean 'points'? expected one of: points, svg"
+    assert unknown_key(["colour"], ["points", "svg"]) == ("colour", "expected one of: points, svg")

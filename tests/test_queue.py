@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import os
 import shutil
@@ -66,6 +67,16 @@ def test_add_list_and_snapshot_round_trip(store):
     assert load_snapshot_device(snap).name == "graphtec-ce6000"
     assert [e.kind for e in store.events(1)] == ["queued"]
     assert store.jobs("running") == []
+
+
+def test_a_queued_job_knows_its_length_before_it_runs(store, capsys):
+    """Issue 18: ``queue list --json`` showed drawn_total_mm 0.0 for a queued job whose length is known at add."""
+    store.add([NewJob(snapshot("IN;SP1;PU0,0;PD400,300;PU0,0;PD0,400;SP0;"), "sim://a", 0, 2)])
+    code, out, _ = run_cli(capsys, "queue", "list", "--json", "--queue", str(store.path))
+    listed = json.loads(out)
+    assert code == 0 and [j["state"] for j in listed] == ["queued"] * 2
+    assert [j["drawn_total_mm"] for j in listed] == [pytest.approx(12.5 + 10.0)] * 2  # 40 units/mm: 500 + 400 units
+    assert [j["drawn_mm"] for j in listed] == [0, 0] and store.job(1).percent == 0
 
 
 def test_claim_order_priority_then_arrival_and_one_job_per_port(store):

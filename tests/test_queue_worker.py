@@ -26,7 +26,7 @@ from foldfab.interpret import interpret
 from foldfab.progress import JobProgress
 from foldfab.queue import NewJob, SqliteQueueStore, make_snapshot
 from foldfab.stream import StreamStopped
-from foldfab.worker import PortUnavailable, Worker, WorkerOptions, start_point
+from foldfab.worker import PortUnavailable, Worker, WorkerOptions, rehearse, start_point
 
 ROOT = Path(__file__).resolve().parent.parent
 HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
@@ -549,6 +549,16 @@ def test_dry_run_rehearses_on_simulated_plotters_and_changes_nothing(tmp_path):
     assert "job 2 pauses: " in run.stdout and "queue continue" not in run.stdout  # nothing to answer
     assert foldfab("queue", "list", "--json", *queue).stdout == before
     assert foldfab("queue", "run", "--once", "--device", "nonesuch", *queue).stdout.startswith("nothing to run")
+
+
+@pytest.mark.parametrize("mode, rehearsed", [("once", [1]), ("until-empty", [1, 2, 3])])
+def test_dry_run_once_rehearses_one_job_as_a_run_would(store, snapshots, mode, rehearsed):
+    """Issue 18: ``queue run --dry-run --once`` rehearsed every queued job; --once is one job in both modes."""
+    store.add([NewJob(snapshots[("grbl", "force")], "/dev/ttyUSB0")] * 3)
+    runner, console = FakePlotter(), Console()
+    summary = rehearse(store, console, WorkerOptions(mode=mode), runner=runner)
+    assert summary.ended == {"done": rehearsed} and runner.runs == len(rehearsed)
+    assert [j.state for j in store.jobs()] == ["queued"] * 3  # a rehearsal changes nothing
 
 
 def test_cancel_of_a_running_job_lifts_the_tool_on_the_real_engine(store, snapshots):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -710,6 +711,8 @@ def test_options_are_checked():
     for key, value in (("noise", "2"), ("time", "slow"), ("buffer", "-1"), ("nosie", "0.1")):
         with pytest.raises(FoldfabError, match=key):
             parse_options([(key, value)])
+    with pytest.raises(FoldfabError, match="unknown option 'nosie'; did you mean 'noise'"):
+        parse_options([("nosie", "0.1")])
     register_handlers()
     with pytest.raises(serial.SerialException, match="unknown option"):
         serial.serial_for_url("sim://grbl?bogus=1")
@@ -789,17 +792,63 @@ def test_pty_grbl_character_counting():
     assert same_strokes(sim.strokes, wanted(device, fab).strokes)
 
 
-def test_pty_refuses_instant_time():
-    sim = create_simulator(load_device("grbl"), SimOptions(time="instant"))
-    with pytest.raises(FoldfabError, match="time=fast"):
-        serve_pty(sim, print, threading.Event())
+def test_pty_serves_in_instant_time_and_reports_the_job():
+    """Issue 18: foldfab sim accepts what sim:// accepts, instant time too (the device runs as fast
+    as it is simulated while the host is silent), and reports each job as it ends."""
+    device, fab = job("grbl")
+    stop, jobs, ready = threading.Event(), [], threading.Event()
+    sim = create_simulator(device, SimOptions(time="instant", sheet=(297.0, 420.0)))
+    paths = []
+    thread = threading.Thread(target=serve_pty, args=(sim, lambda p: paths.append(p) or ready.set(), stop,
+                                                      jobs.append))
+    thread.start()
+    try:
+        assert ready.wait(5)
+        port = serial.Serial(paths[0], 115200, timeout=5)
+        port.write(b"\x18")
+        assert port.read_until(BANNER).endswith(BANNER)
+        Grbl(port).send(fab.program.text)
+        port.close()
+        deadline = time.monotonic() + 60
+        while not jobs:  # M2 ends the job: reported while serving
+            assert time.monotonic() < deadline, "no job reported"
+            time.sleep(0.02)
+    finally:
+        stop.set()
+        thread.join(10)
+    want = wanted(device, fab)
+    assert same_strokes(sim.strokes, want.strokes) and sim.stats.bytes_lost == 0
+    assert len(jobs) == 1 and jobs[0].drawn == pytest.approx(sum(s.length for s in want.strokes))
+    assert jobs[0].end - jobs[0].start == pytest.approx(estimate(want, device).total, rel=0.05)
+
+
+@pytest.mark.parametrize("device_name, first, second", [
+    ("grbl", b"G1 Z-0.3 F600\nG1 X10\n", b"G1 Y10\n"),  # no M2: only the host's silence ends the job
+    ("hp7475a", b"IN;SP1;PD400,0;SP0;", b"IN;SP1;PD400,400;SP0;")])
+def test_the_wait_between_two_jobs_is_no_starvation(device_name, first, second):
+    """Issue 18: 'starved 1796 s' after one short job: the time before a job's first byte and after
+    its last is no starvation (nor a pause); each job is recorded with its bytes, length and time."""
+    sim = create_simulator(load_device(device_name), SimOptions(time="instant"))
+    sim.connect()
+    _, done = sim.transmit(first, 100.0)  # the host came after 100 s
+    sim.run_until(lambda: False, done + 60)
+    assert sim.end_job() is not None
+    _, done = sim.transmit(second, done + 1800)  # and again half an hour later
+    sim.run_until(lambda: False, done + 60)
+    sim.end_job(force=True)
+    stats = sim.stats
+    assert stats.starved_time < 1 and stats.paused_time < 1, stats.summary()
+    assert [(j.number, j.received) for j in stats.jobs] == [(1, len(first)), (2, len(second))]
+    assert [round(j.drawn, 6) for j in stats.jobs] == [10.0, 10.0]
+    assert all(0 < j.end - j.start < 60 for j in stats.jobs)
+    assert stats.plot_time == pytest.approx(sum(j.end - j.start for j in stats.jobs))
 
 
 def test_foldfab_sim_command(tmp_path):
     device, fab = job("hp7475a")
     record, svg = tmp_path / "run.json", tmp_path / "run.svg"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "foldfab", "sim", "hp7475a", "--pty", "--time", "fast",
+    proc = subprocess.Popen(  # issue 18: no --pty needed (the only mode)
+        [sys.executable, "-m", "foldfab", "sim", "hp7475a", "--time", "fast",
          "-o", f"sheet={SHEET}", "--option", "speedup=200", "--record", str(record), "--svg", str(svg)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:
@@ -810,14 +859,41 @@ def test_foldfab_sim_command(tmp_path):
         port.write(b"OA;")  # answered once every move before it has ended
         assert port.read_until(b"\r").endswith(b",0\r")
         port.close()
+        served = proc.stdout.readline()  # printed while serving, once the host has gone quiet
     finally:
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
+    length = sum(s.length for s in wanted(device, fab).strokes)
+    assert re.fullmatch(rf"job 1 +received \d+ bytes, drew {length:.1f} mm in [\d.]+ s\n", served), served
     assert f"strokes      {len(wanted(device, fab).strokes)} drawn" in out
     assert "0 lost" in out and "wrote" in out
-    assert "<svg" in svg.read_text()
+    drawing = svg.read_text()  # each pen in its layer's colour, as foldfab's own preview draws it
+    for layer, colour in (("valley", "#0000ff"), ("mountain", "#ff0000"), ("cut", "#000000")):
+        assert re.search(rf'data-layer="{layer}" fill="none" stroke="{colour}"', drawing), layer
     assert json.loads(record.read_text())["stats"]["bytes_lost"] == 0
+
+
+def test_foldfab_sim_accepts_instant_time(tmp_path):
+    run = subprocess.run([sys.executable, "-m", "foldfab", "sim", "grbl", "--time", "slow"],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert run.returncode == 2 and "time='slow': expected real, fast or instant" in run.stderr
+    proc = subprocess.Popen([sys.executable, "-m", "foldfab", "sim", "grbl", "--time", "instant"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        port = serial.Serial(proc.stdout.readline().strip(), 115200, timeout=5)
+        port.write(b"\x18")
+        assert port.read_until(BANNER).endswith(BANNER)  # (after what is left of the greeting on start)
+        port.write(b"G1 Z-1 F600\nG1 X100 F60\nM2\n")  # 100 s of drawing, at once
+        assert port.read_until(b"Pgm End]\r\nok\r\n").endswith(b"ok\r\nok\r\n[MSG:Pgm End]\r\nok\r\n")
+        port.close()
+        served = proc.stdout.readline()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
+    found = re.fullmatch(r"job 1 +received \d+ bytes, drew 100\.0 mm in ([\d.]+) s\n", served)
+    assert found and 100 < float(found.group(1)) < 110, served  # the simulated plotter's time
 
 
 def test_foldfab_sim_command_errors():
@@ -892,3 +968,16 @@ def test_a_session_reopened_resets_the_board_as_it_is_now():
     again = open_port(url.format(2), timeout=2)
     assert again.read_until(b"unlock]\r\n") == b"ALARM:3\r\n" + BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n"
     again.close()
+
+
+def test_recorded_svg_names_strokes_by_the_layer_whose_tool_drew_them():
+    """A device gets tools, not layer names: the SVG names each stroke by the profile's layer with
+    that tool; layers sharing one tool share a name and the first one's colour."""
+    from foldfab.preview import layer_color
+    from foldfab.sim.record import layer_named
+
+    device = load_device("graphtec-ce6000")  # valley and mountain: pen 1, force 6; cut: force 18
+    stroke = interpret("IN;SP1;FS6;PD100,0;PU;FS18;PD0,100;PU;FS30;PD100,100;", device).strokes
+    names = [s.layer for s in layer_named(stroke, device)]
+    assert names == ["valley+mountain", "cut", "pen 1"]
+    assert [layer_color(n) for n in names] == ["#0000ff", "#000000", "#808080"]

@@ -493,3 +493,29 @@ def test_host_cpu_stays_low_while_the_plotter_works(pty_plotter):
     share = (time.process_time() - cpu) / (time.monotonic() - wall)
     assert share < 0.05, f"the host used {share:.1%} of a core"
     stop_pty(proc, record)
+
+
+@pytest.mark.parametrize("device_name, time_option", [
+    ("hp7475a", "instant"), ("hp7475a", "fast&speedup=10"), ("grbl", "fast&speedup=10"),
+    ("graphtec-ce6000", "fast&speedup=10")])
+def test_eta_is_on_the_clock_the_plotter_runs_on(device_name, time_option):
+    """Issue 18: under sim://?time=fast the ETA mixed the simulated and the wall clock (1:12 at the
+    start, 9.54 at 37 %, done after 1.6 s).  Elapsed time and ETA are both read on the plotter's
+    clock, so the ETA at 37 % foretells the time the job then takes."""
+    device = load_device(device_name)
+    job = ROOT / "jobs" / "hexagon-fig8a.toml"
+    design = load_design(job)
+    program = fabricate(design, device, parse_fabrication(design.job.fabrication, str(job))).program
+    events = []
+    link = open_port(f"sim://{device_name}?time={time_option}", device)
+    try:
+        stream(link, program, device, events=events.append)
+    finally:
+        link.close()
+    end = events[-1]
+    assert end.kind == "done" and end.elapsed > 5  # seconds of the plotter's clock, not of the host's
+    at = min((e for e in events if e.kind == "progress"), key=lambda e: abs(e.fraction - 0.37))
+    assert 0.2 < at.fraction < 0.55, [round(e.fraction, 2) for e in events]
+    taken = end.elapsed - at.elapsed
+    assert at.eta == pytest.approx(taken, rel=0.3), (at.eta, taken)
+    assert events[0].eta == pytest.approx(end.elapsed, rel=0.3), (events[0].eta, end.elapsed)

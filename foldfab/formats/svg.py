@@ -1,36 +1,73 @@
-"""SVG crease pattern in Origami Simulator's conventions, in millimetres.
+"""SVG crease pattern in Origami Simulator's conventions.
 
 Flat ``<line>`` elements only (no groups, transforms or CSS); stroke colour by
 assignment and ``stroke-opacity`` = |fold angle| / 180.  The sheet is drawn as
 seen from its front: crease-pattern y (up) becomes SVG y (down) by a flip, so
 mountains stay mountains on screen.
+
+Origami Simulator's import merges vertices closer than 3 of the SVG's user units
+(its default tolerance), so the coordinates are written in a user unit fine enough
+that the import is exact (:func:`user_unit`); ``width`` and ``height`` in mm keep the
+sheet's physical size.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from foldfab.crease_pattern import CreasePattern
 
 COLORS = {"M": "#ff0000", "V": "#0000ff", "B": "#000000", "F": "#ffff00"}
+IMPORT_TOLERANCE = 3.0
+"""User units: Origami Simulator merges vertices closer than this by default."""
+CLEARANCE = 10.0
+"""User units the closest two vertices are at least apart: the import's tolerance with a margin."""
+COARSEST_UNIT = 0.1
+"""mm: the user unit of a design whose vertices are at least 1 mm apart."""
+
+
+def user_unit(vertices: np.ndarray) -> float:
+    """mm per SVG user unit: 0.1, or the largest power of ten below it that puts the closest
+    two distinct vertices at least :data:`CLEARANCE` units apart.  A unit per design (rather
+    than one fixed fine unit) keeps ordinary patterns at a readable 0.1 mm and still imports
+    a pattern with sub-millimetre details exactly."""
+    shortest = _shortest_distance(vertices)
+    if shortest is None or shortest >= CLEARANCE * COARSEST_UNIT:
+        return COARSEST_UNIT
+    return 10.0 ** math.floor(math.log10(shortest / CLEARANCE))
+
+
+def _shortest_distance(vertices: np.ndarray) -> float | None:
+    """The distance between the closest two distinct vertices (None: fewer than two)."""
+    from scipy.spatial import cKDTree
+
+    unique = np.unique(vertices, axis=0)
+    if len(unique) < 2:
+        return None
+    distance, _ = cKDTree(unique).query(unique, k=2)
+    return float(distance[:, 1].min())
 
 
 def dumps(cp: CreasePattern, stroke_width: float = 0.2) -> str:
-    """SVG text of ``cp``."""
+    """SVG text of ``cp``; ``stroke_width`` in mm."""
+    unit = user_unit(cp.vertices)
     lo = cp.vertices.min(axis=0)
     hi = cp.vertices.max(axis=0)
     width, height = hi - lo
     p = cp.vertices[cp.edges]
-    x = p[..., 0] - lo[0]
-    y = hi[1] - p[..., 1]
+    x = (p[..., 0] - lo[0]) / unit
+    y = (hi[1] - p[..., 1]) / unit
     opacity = np.where(cp.assignment == "B", 1.0, np.abs(cp.fold_angle) / 180.0)
     # Borders last so the outline is drawn on top.
     order = np.argsort(cp.assignment == "B", kind="stable")
     lines = [
         f'<line x1="{x[i, 0]:.6f}" y1="{y[i, 0]:.6f}" x2="{x[i, 1]:.6f}" y2="{y[i, 1]:.6f}" '
-        f'stroke="{COLORS[cp.assignment[i]]}" stroke-opacity="{opacity[i]:.6f}" stroke-width="{stroke_width:g}"/>'
+        f'stroke="{COLORS[cp.assignment[i]]}" stroke-opacity="{opacity[i]:.6f}" '
+        f'stroke-width="{stroke_width / unit:g}"/>'
         for i in order.tolist()
     ]
     return (f'<?xml version="1.0" encoding="UTF-8"?>\n'
             f'<svg xmlns="http://www.w3.org/2000/svg" version="1.1" width="{width:.6f}mm" height="{height:.6f}mm" '
-            f'viewBox="0 0 {width:.6f} {height:.6f}">\n' + "\n".join(lines) + "\n</svg>\n")
+            f'viewBox="0 0 {width / unit:.6f} {height / unit:.6f}">\n' + "\n".join(lines) + "\n</svg>\n")

@@ -27,7 +27,8 @@ Timing model
 
 Statistics: busy = moving, lifting, dwelling; an idle interval counts as starvation
 when more bytes arrived after it, as a pause when the device was parked or held, and
-not at all after the end of a program.  See :class:`~foldfab.sim.record.SimStats`.
+not at all after the end of a program or between two jobs (:meth:`Simulator.end_job`).
+See :class:`~foldfab.sim.record.SimStats`.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ import numpy as np
 
 from foldfab.sim.clock import Clock
 from foldfab.sim.motion import Block, plan_start
-from foldfab.sim.record import PauseRecord, SimStats, recording_json, recording_svg
+from foldfab.sim.record import JobRecord, PauseRecord, SimStats, recording_json, recording_svg
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -51,6 +52,10 @@ if TYPE_CHECKING:
 
 XON, XOFF = 0x11, 0x13
 INF = math.inf
+JOB_GAP = 30.0
+"""Virtual seconds of silence from the host, the device idle and not held, that end a job
+(:meth:`Simulator.end_job`).  An HP-GL program's end and its operator pauses both park the
+pen (``SP0``), so a pause longer than this splits a job in two."""
 
 
 class Simulator:
@@ -103,6 +108,9 @@ class Simulator:
         self._rng = np.random.default_rng(options.seed) if options.noise else None
         self._idle = 0.0
         self._parked: PauseRecord | None = None  # the pause idle time is being added to
+        self._job_start: float | None = None  # first job byte of the job in progress
+        self._job_bytes = 0  # bytes received before it
+        self._job_drawn = 0.0  # mm drawn before it
         self._overrunning = False
         serial = device.serial
         self.configure_wire(serial.baudrate, serial.bytesize, serial.parity, serial.stopbits)
@@ -390,6 +398,8 @@ class Simulator:
         stats = self.stats
         if stats.first_byte is None:
             stats.first_byte = t
+        if self._job_start is None:  # a new job: the wait for it was no starvation
+            self._job_start, self._idle = t, 0.0
         if self._idle > 0:
             kind = self._idle_kind()
             if kind == "starved":
@@ -401,6 +411,25 @@ class Simulator:
                     stats.pauses.append(self._parked)
                 self._parked.duration += self._idle
             self._idle = 0.0
+
+    def end_job(self, force: bool = False) -> JobRecord | None:
+        """End the job in progress if it is over, and record it: the device is idle (nothing to
+        run, not held) and its program ended (GRBL ``M2``) or the host has sent nothing for
+        :data:`JOB_GAP` seconds.  ``force``: end it anyway (serving stops).  The idle time that
+        follows belongs to no job, so it counts as neither starvation nor a pause.  A
+        ``sim://`` port never asks: all it serves is one job."""
+        if self._job_start is None:
+            return None
+        idle = not (self.frozen or self.planner or self.rx) and self.block_end is None
+        if not force and not (idle and (self._idle_kind() == "ended" or self._idle >= JOB_GAP)):
+            return None
+        stats, drawn = self.stats, sum(s.length for s in self.strokes)
+        job = JobRecord(len(stats.jobs) + 1, self._job_start, max(stats.last_activity or self.t, self._job_start),
+                        stats.bytes_received - self._job_bytes, drawn - self._job_drawn)
+        stats.jobs.append(job)
+        self._job_start, self._job_bytes, self._job_drawn = None, stats.bytes_received, drawn
+        self._idle, self._parked = 0.0, None
+        return job
 
     def _corrupt(self, data: bytes) -> bytes:
         """``data`` with one random bit flipped in each byte hit by the noise."""

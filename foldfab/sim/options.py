@@ -5,7 +5,7 @@ Every option, its type and meaning (the fault options describe what a test provo
 =====================  ================================================================
 ``time``               ``real`` (default), ``fast`` (the virtual clock runs ``speedup``
                        times the wall clock) or ``instant`` (only blocking host calls
-                       move it; ``sim://`` only)
+                       move it; on a pty, the device runs ahead while the host is silent)
 ``speedup``            ``fast`` only: how many virtual seconds per wall second (50)
 ``sheet``              sheet the strokes are reported on: ``A3``, ``A4 landscape``,
                        ``297x420`` (default: the profile's)
@@ -39,7 +39,7 @@ from dataclasses import dataclass, fields
 from typing import Iterable
 
 from foldfab.devices import FLOW_CONTROLS, parse_sheet
-from foldfab.errors import FoldfabError
+from foldfab.errors import FoldfabError, unknown_key
 
 TIME_MODES = ("real", "fast", "instant")
 
@@ -126,9 +126,9 @@ def parse_options(pairs: Iterable[tuple[str, str]], where: str = "simulator") ->
     """Options from (key, text) pairs; a FoldfabError names ``where``, the key and what it takes."""
     values: dict = {}
     for key, text in pairs:
-        if key not in _PARSERS:
-            raise FoldfabError(f"{where}: unknown option {key!r}; known options: "
-                               f"{', '.join(_PARSERS)}")
+        found = unknown_key([key], _PARSERS)
+        if found:
+            raise FoldfabError(f"{where}: unknown option {key!r}; {found[1]}")
         expected, parse = _PARSERS[key]
         value = parse(text.strip())
         if value is None:

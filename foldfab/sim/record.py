@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from foldfab.devices import DeviceProfile
     from foldfab.interpret import Stroke
     from foldfab.sim.device import Simulator
 
@@ -20,6 +21,25 @@ class PauseRecord:
     duration: float | None
     """None while it lasts."""
     reason: str
+
+
+@dataclass
+class JobRecord:
+    """One job a device served: from its first byte of job data to its last command or move."""
+
+    number: int
+    start: float
+    """Virtual seconds."""
+    end: float
+    received: int
+    """Bytes received (queries between jobs count to the next job)."""
+    drawn: float
+    """mm drawn."""
+
+    def line(self) -> str:
+        """One line for ``foldfab sim``'s output."""
+        return (f"job {self.number:<8} received {self.received} bytes, drew {self.drawn:.1f} mm in "
+                f"{self.end - self.start:.2f} s")
 
 
 @dataclass
@@ -57,10 +77,15 @@ class SimStats:
     last_activity: float | None = None
     """Virtual time the last command or move finished."""
     pauses: list[PauseRecord] = field(default_factory=list)
+    jobs: list[JobRecord] = field(default_factory=list)
+    """Jobs ended so far (see :meth:`foldfab.sim.device.Simulator.end_job`)."""
 
     @property
     def plot_time(self) -> float:
-        """From the first byte of job data to the end of the last move (virtual seconds)."""
+        """From the first byte of job data to the end of the last move (virtual seconds); of
+        each job, when jobs were recorded (the waits between them are nobody's time)."""
+        if self.jobs:
+            return sum(job.end - job.start for job in self.jobs)
         if self.first_byte is None or self.last_activity is None:
             return 0.0
         return max(0.0, self.last_activity - self.first_byte)
@@ -102,7 +127,37 @@ def recording_json(sim: Simulator) -> str:
 
 
 def recording_svg(sim: Simulator) -> str:
-    """The drawn strokes and travel as foldfab's preview SVG."""
+    """The drawn strokes and travel as foldfab's preview SVG, each stroke in the colour of
+    the layer whose tool drew it (:func:`layer_named`)."""
+    from dataclasses import replace
+
     from foldfab.preview import render_preview
 
-    return render_preview(sim.interpretation(), sim.device, sim.sheet)
+    run = sim.interpretation()
+    return render_preview(replace(run, strokes=layer_named(run.strokes, sim.device)), sim.device, sim.sheet)
+
+
+def layer_named(strokes: list[Stroke], device: DeviceProfile) -> list[Stroke]:
+    """``strokes`` named by the device profile's layer whose tool drew them: the same pen (HPGL),
+    force and lowered position (G-code); layers with one tool share a name ("valley+mountain",
+    the first one's colour).  A device receives no layer names, only tools; a stroke that no
+    layer's tool drew keeps its "pen N" name (grey)."""
+    from dataclasses import replace
+
+    from foldfab.program import Section
+    from foldfab.plan import Tool
+
+    by_tool: dict[tuple, list[str]] = {}
+    for name, layer in device.layers.items():
+        by_tool.setdefault((layer.pen if device.protocol == "hpgl" else None, layer.force,
+                            layer.pen_down), []).append(name)
+    named = []
+    for stroke in strokes:
+        names = by_tool.get((stroke.pen, stroke.force, stroke.pen_down))
+        if names is None:
+            named.append(stroke)
+            continue
+        section = Section(stroke.offset, 0, 0, "+".join(names), 0,
+                          Tool(stroke.pen or 0, stroke.force, stroke.speed, 1))
+        named.append(replace(stroke, section=section))
+    return named
