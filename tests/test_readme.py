@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import re
+import shlex
+import shutil
+import subprocess
+import sys
+import urllib.request
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -39,3 +45,37 @@ def test_ci_runs_the_readme_test_command():
 def test_main_command_uses_an_existing_job():
     jobs = re.findall(r"jobs/[\w-]+\.toml", _commands()[0])
     assert jobs and all((ROOT / job).is_file() for job in jobs)
+
+
+def _tour() -> list[str]:
+    """The ``$ foldfab ...`` lines of the README's console blocks, in order."""
+    blocks = re.findall(r"```console\n(.+?)\n```", (ROOT / "README.md").read_text(), flags=re.S)
+    return [line[2:] for block in blocks for line in block.splitlines() if line.startswith("$ ")]
+
+
+def test_the_tour_has_commands_for_every_stage():
+    words = {shlex.split(command)[1] for command in _tour()}
+    assert {"design", "preview", "export", "plot", "queue", "studio"} <= words
+
+
+def test_every_tour_command_runs(tmp_path):
+    """Each tour command, as written, in a copy of the repository's jobs: exit 0 (the studio: it serves)."""
+    shutil.copytree(ROOT / "jobs", tmp_path / "jobs")
+    (tmp_path / "out").mkdir()
+    env = {**os.environ, "XDG_STATE_HOME": str(tmp_path / "state"), "XDG_DATA_HOME": str(tmp_path / "data")}
+    for command in _tour():
+        argv = [sys.executable, "-m", "foldfab", *shlex.split(command)[1:]]
+        if argv[3] == "studio":
+            with subprocess.Popen(argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, text=True) as studio:
+                try:
+                    line = studio.stdout.readline()  # the server prints its address once it listens
+                    address = re.search(r"http://127\.0\.0\.1:\d+/", line)
+                    assert address, line
+                    with urllib.request.urlopen(address.group(), timeout=60) as page:
+                        assert page.status == 200
+                finally:
+                    studio.terminate()
+            continue
+        result = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600,
+                                stdin=subprocess.DEVNULL)
+        assert result.returncode == 0, f"{command}\n{result.stdout}\n{result.stderr}"
