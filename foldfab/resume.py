@@ -172,14 +172,16 @@ def _read_state_file(path: Path, token: str) -> str:
     except OSError as exc:
         why = "it is a symbolic link" if exc.errno == errno.ELOOP else exc.strerror
         raise FoldfabError(f"{where}: cannot read it: {why}; {_DAMAGED}") from None
-    with open(fd, "rb") as file:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
             raise FoldfabError(f"{where}: cannot read it: not a regular file; {_DAMAGED}")
-        try:
-            data = file.read(STATE_MAX_BYTES + 1)
-        except OSError as exc:
-            raise FoldfabError(f"{where}: cannot read it: {exc.strerror}; {_DAMAGED}") from None
+        data = b""
+        while len(data) <= STATE_MAX_BYTES and (chunk := os.read(fd, STATE_MAX_BYTES + 1 - len(data))):
+            data += chunk
+    except OSError as exc:
+        raise FoldfabError(f"{where}: cannot read it: {exc.strerror}; {_DAMAGED}") from None
+    finally:
+        os.close(fd)
     if len(data) > STATE_MAX_BYTES:
         raise FoldfabError(f"{where}: cannot read it: larger than {STATE_MAX_BYTES} bytes; {_DAMAGED}")
     try:
@@ -490,7 +492,8 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
 
     With ``resume``, only what the saved state says is left is sent, after checking the
     program is unchanged; the state is deleted once the plot finishes.  ``from_stroke``
-    (an index) is the operator's choice of where to resume, instead of asking the plotter;
+    (an index; the number of strokes: every one is drawn) is the operator's choice of where
+    to resume, instead of asking the plotter;
     when the plotter's answer is doubtful, ``choose`` is asked (the stroke to resume at, at
     or past the end: the job is finished; None: stop), and without it
     :class:`ResumeAmbiguous` is raised.  A plot that stops early saves (or updates) its
@@ -563,9 +566,9 @@ def _start(state: ResumeState, program: Program, device: DeviceProfile, port: st
     and on doubtful evidence the operator's choice (``choose``; without it, or if the operator
     declines, :class:`ResumeAmbiguous`, the token kept)."""
     if from_stroke is not None:
-        if not 0 <= from_stroke < len(strokes):
+        if not 0 <= from_stroke <= len(strokes):
             raise FoldfabError(f"--from-stroke {from_stroke + 1}: expected a stroke of this job's "
-                               f"{len(strokes)} (1 to {len(strokes)})")
+                               f"{len(strokes)} (1 to {len(strokes)}), or {len(strokes) + 1}: every stroke is drawn")
         return from_stroke, "chosen by the operator (--from-stroke)"
     if not state.locate:
         return state.stroke, "the plotter reported an error, so where it stopped is not used"

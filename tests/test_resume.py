@@ -309,14 +309,15 @@ def test_a_changed_program_device_or_job_is_refused():
     job = str(ROOT / "jobs/star.toml")
     state = ResumeState("abcdef", str(Path(job).resolve()), "grbl", "sim://", program_hash(program),
                         len(program.text), 3, 36, 0, "why")
-    check_state(state, program, job, device)
+    strokes = strokes_of(program, device)
+    check_state(state, program, job, device, strokes)
     changed = replace(program, text=program.text.replace("F1800", "F1801"))
     with pytest.raises(FoldfabError, match="changed since the plot stopped"):
-        check_state(state, changed, job, device)
+        check_state(state, changed, job, device, strokes)
     with pytest.raises(FoldfabError, match="ran on device 'grbl', not 'hp7475a'"):
-        check_state(state, program, job, load_device("hp7475a"))
+        check_state(state, program, job, load_device("hp7475a"), strokes)
     with pytest.raises(FoldfabError, match="that plot was"):
-        check_state(state, program, str(ROOT / "jobs/helix-fig12.toml"), device)
+        check_state(state, program, str(ROOT / "jobs/helix-fig12.toml"), device, strokes)
 
 
 @pytest.fixture
@@ -387,3 +388,115 @@ def test_pauses_confirmed_before_the_stop_are_not_asked_again(opened, state_home
     plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=stopped.value.token,
          operator=lambda m: asked.append(m) or True)
     assert asked == []
+
+
+# --- hostile resume states: checked like a job file, the token only ever a name -----------------
+
+
+def stopped_state(job: str = str(ROOT / "jobs/star.toml"), name: str = "grbl", strategy: str = "force"):
+    """A job stopped on a plotter error: its device, program, state file and the state as JSON."""
+    device = load_device(name)
+    program = fabricated(job, name, strategy).program
+    with pytest.raises(PlotStopped) as stopped:
+        plot(program, device, job=job, port="sim://?time=instant&sheet=A3&error_at=60")
+    path = load_state(stopped.value.token).path
+    return device, program, path, json.loads(path.read_text())
+
+
+def resume_with(device, program, job: str = str(ROOT / "jobs/star.toml"), **kw):
+    return plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=kw.pop("token"), **kw)
+
+
+BAD_FIELDS = [
+    ("stroke", "x"), ("stroke", 3.5), ("stroke", None), ("stroke", True), ("stroke", -1), ("stroke", [3]),
+    ("stroke", 36), ("stroke", 10 ** 30),  # at or past the end: not "done"
+    ("strokes", 0), ("strokes", "36"), ("strokes", 35), ("strokes", 37),
+    ("pauses_done", "x"), ("pauses_done", -1), ("pauses_done", None), ("pauses_done", 1),
+    ("job", None), ("job", 5), ("job", ""), ("job", "jobs/star.toml"), ("job", "/a\0b"),
+    ("device", None), ("device", ""), ("port", None), ("port", 7), ("port", ""),
+    ("program_sha256", "0" * 63), ("program_sha256", None), ("program_bytes", "2823"), ("program_bytes", 0),
+    ("program_bytes", 2822), ("locate", "yes"), ("locate", 1), ("locate", None),
+    ("created", 5), ("created", "x" * 65), ("reason", None), ("reason", "x" * 20000),
+    ("token", "../../../../tmp/victim"), ("token", None), ("token", "abcdee"),
+    ("version", "1"), ("version", True), ("version", 2), ("version", None),
+]
+
+
+@pytest.mark.parametrize("key, value", BAD_FIELDS, ids=[f"{k}={json.dumps(v)[:20]}" for k, v in BAD_FIELDS])
+def test_every_field_of_a_resume_state_is_checked(key, value, opened):
+    """A field of the wrong type or range is a one-line error naming the file and the field, the
+    state is kept and no port is opened (no traceback, no "done" for a stroke past the end)."""
+    device, program, path, data = stopped_state()
+    opened.clear()
+    data[key] = value
+    path.write_text(json.dumps(data))
+    with pytest.raises(FoldfabError) as error:
+        resume_with(device, program, token=path.stem)
+    message = str(error.value)
+    assert str(path) in message and "\n" not in message
+    assert (f"has version {json.dumps(value)}" if key == "version" else f"{key} = ") in message, message
+    assert path.read_text() == json.dumps(data) and not opened  # kept as it was; nothing sent
+
+
+@pytest.mark.parametrize("content", [
+    pytest.param(lambda d: json.dumps(d) + " " * 70_000, id="larger than 64 KiB"),
+    pytest.param(lambda d: "[" * 50_000, id="deeply nested"),
+    pytest.param(lambda d: json.dumps(d).encode("utf-16"), id="not UTF-8"),
+    pytest.param(lambda d: json.dumps([d]), id="a list"),
+    pytest.param(lambda d: json.dumps(dict(d, extra=1)), id="an unknown key"),
+    pytest.param(lambda d: json.dumps({k: v for k, v in d.items() if k != "locate"}), id="a missing key"),
+])
+def test_a_state_file_that_foldfab_did_not_write_is_refused(content):
+    device, program, path, data = stopped_state()
+    text = content(data)
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with pytest.raises(FoldfabError, match=r"larger than 65536 bytes|not JSON|not UTF-8|not a foldfab resume state"):
+        resume_with(device, program, token=path.stem)
+
+
+@pytest.mark.timeout(60)  # a pipe would block a reader that opens it without O_NONBLOCK
+@pytest.mark.parametrize("kind", ["symlink", "folder", "pipe"])
+def test_a_state_that_is_not_a_regular_file_is_refused(kind, tmp_path):
+    """A link (to a state written elsewhere), a folder or a named pipe in the state folder is not read."""
+    import os
+
+    device, program, path, data = stopped_state()
+    elsewhere = tmp_path / "elsewhere.json"
+    elsewhere.write_text(path.read_text())
+    path.unlink()
+    if kind == "symlink":
+        path.symlink_to(elsewhere)
+    elif kind == "folder":
+        path.mkdir()
+    else:
+        os.mkfifo(path)
+    with pytest.raises(FoldfabError, match="symbolic link|not a regular file"):
+        resume_with(device, program, token=path.stem)
+    assert elsewhere.read_text() == json.dumps(data, indent=2) + "\n"
+
+
+@pytest.mark.parametrize("finish", [True, False], ids=["resume-finishes", "resume-stops-again"])
+def test_a_token_inside_the_file_never_reaches_outside_the_state_folder(finish, state_home, tmp_path):
+    """The token inside the file named ``../../../victim`` once deleted a file outside the state folder
+    (a finished resume) or wrote one there (a stopped one)."""
+    device, program, path, data = stopped_state()
+    victim = tmp_path / "victim.json"
+    victim.write_text("precious")
+    data["token"] = "../../../victim"
+    assert (path.parent / f"{data['token']}.json").resolve() == victim.resolve()
+    path.write_text(json.dumps(data))
+    port = "sim://?time=instant&sheet=A3" + ("" if finish else "&error_at=20")
+    with pytest.raises(FoldfabError, match="token = "):
+        plot(program, device, job=str(ROOT / "jobs/star.toml"), port=port, resume=path.stem)
+    assert victim.read_text() == "precious"
+    assert sorted(p.name for p in path.parent.iterdir()) == [path.name]
+
+
+@pytest.mark.parametrize("token", ["../../x", "/tmp/victim", "ABCDEF", "abc", "abcdef.json", "a" * 33])
+def test_a_token_on_the_command_line_is_only_a_name(token, capsys):
+    from foldfab.cli import main
+
+    with pytest.raises(SystemExit) as exited:
+        main(["plot", str(ROOT / "jobs/star.toml"), "--device", "grbl", "--port", "sim://", "--resume", token])
+    assert exited.value.code == 2
+    assert "6 to 32 characters 0-9 and a-f" in capsys.readouterr().err
