@@ -9,6 +9,8 @@ it), then compare both recordings with the program.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import json
 import re
 import threading
@@ -504,3 +506,83 @@ def test_a_token_on_the_command_line_is_only_a_name(token, capsys):
         main(["plot", str(ROOT / "jobs/star.toml"), "--device", "grbl", "--port", "sim://", "--resume", token])
     assert exited.value.code == 2
     assert "6 to 32 characters 0-9 and a-f" in capsys.readouterr().err
+
+
+# --- the operator's choice when where a plot stopped is uncertain (foldfab plot) -------------------
+
+
+_sessions = itertools.count()
+
+
+@pytest.fixture
+def power_cycled(capsys):
+    """A GRBL job whose cable was pulled and whose board was switched off and on (it does not greet):
+    the resume command's arguments (without --resume), the token and the session's name."""
+    from foldfab.cli import main
+
+    session = f"cli-cycled-{next(_sessions)}"
+    url = f"sim://?time=instant&session={session}&reset_on_open=0"
+    job = str(ROOT / "jobs/hexagon-fig8a.toml")
+    assert main(["plot", job, "--device", "grbl", "--port", f"{url}&disconnect_after=700&power_cycle=1"]) == 2
+    token = re.search(r"resume token (\w+)", capsys.readouterr().err).group(1)
+    return ["plot", job, "--device", "grbl", "--port", url], token, session
+
+
+def test_without_a_terminal_an_uncertain_resume_stops_and_says_what_to_run(power_cycled, capsys):
+    """The issue: a board at its power-on state, which is also where the job parks, once made a resume
+    report "done" with 23 strokes undrawn.  Without a terminal (or with --json) foldfab stops with
+    exit 2, keeps the token, and prints the two commands to choose from; the chosen one finishes."""
+    from foldfab.cli import main
+    from foldfab.urlhandler.protocol_sim import _SESSIONS
+
+    args, token, session = power_cycled
+    assert main([*args, "--resume", token, "--json"]) == 2
+    out, err = capsys.readouterr()
+    event = json.loads(out.splitlines()[-1])
+    assert event["event"] == "resume_ambiguous" and event["token"] == token
+    acked, strokes = event["acknowledged"], event["strokes"]
+    assert acked < strokes and event["located"] == strokes + 1 and "switched off and on" in event["reason"]
+    assert err.count("\n") == 1 and "where the plot stopped is uncertain" in err
+    assert f"--resume {token} --from-stroke {acked} (from the last acknowledged stroke)" in err
+    assert f"--from-stroke {strokes + 1} (if every stroke is on the sheet" in err
+    assert load_state(token).stroke == acked - 1  # kept, unchanged
+    assert main([*args, "--resume", token, "--from-stroke", str(acked)]) == 0
+    want = strokes_of(fabricated(args[1], "grbl").program, load_device("grbl"))
+    assert len([s for s in _SESSIONS[session].strokes if s.length > 0]) == len(want) - acked + 1
+    with pytest.raises(FoldfabError, match="no saved plot"):
+        load_state(token)
+
+
+@pytest.mark.parametrize("answer", ["a", "p", "q"])
+def test_on_a_terminal_the_operator_is_asked(answer, power_cycled, capsys, monkeypatch):
+    from foldfab.cli import main
+    from foldfab.urlhandler.protocol_sim import _SESSIONS
+
+    args, token, session = power_cycled
+    answers = iter(["", "maybe", answer])
+    monkeypatch.setattr("sys.stdin.isatty", lambda: True)
+    monkeypatch.setattr("builtins.input", lambda prompt: next(answers))
+    code = main([*args, "--resume", token])
+    err = capsys.readouterr().err
+    assert "a  resume at stroke" in err and "p  trust the plotter: the job is finished" in err and "q  stop here" in err
+    drawn = [s for s in _SESSIONS[session].strokes if s.length > 0]
+    if answer == "q":
+        assert code == 2 and load_state(token).stroke > 0 and not drawn
+        return
+    assert code == 0 and not (state_dir() / f"{token}.json").exists()
+    assert bool(drawn) == (answer == "a")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--from-stroke", "3"], "give --resume TOKEN too"),
+    (["--resume", "TOKEN", "--from-stroke", "0"], "expected a stroke number, 1 or more"),
+    (["--resume", "TOKEN", "--from-stroke", "30"], "expected a stroke of this job's 28 \\(1 to 28\\), or 29"),
+])
+def test_from_stroke_is_checked(args, message, power_cycled, capsys):
+    from foldfab.cli import main
+
+    base, token, _ = power_cycled
+    with pytest.raises(SystemExit) if "1 or more" in message else contextlib.nullcontext():
+        assert main([*base, *[token if a == "TOKEN" else a for a in args]]) == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert load_state(token).stroke > 0
