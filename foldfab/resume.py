@@ -17,7 +17,13 @@ plotter is therefore asked where its pen is (:func:`locate_resume`): what it sti
 holds is discarded, and the strokes it drew after the last acknowledgement are
 skipped (:func:`first_undrawn` never skips one it did not draw).  A GRBL board that
 resets when its port opens (an Arduino's DTR) has lost its position, so such a job
-resumes at the last acknowledged line.
+resumes at the last acknowledged line.  A position is no proof when it is also the
+power-on state (pen up at the origin: a board switched off and on that does not greet
+looks exactly like one parked there) or when it would place the resume at the end of
+the program while strokes are unacknowledged (:attr:`Location.doubt`): :func:`plot`
+then asks ``choose`` (the command line asks the operator on a terminal) or stops with
+:class:`ResumeAmbiguous`, its token kept; ``from_stroke`` is the operator's answer
+(``--from-stroke N``).  Nothing ever resumes past doubtful evidence by itself.
 
 Resume states are JSON files in ``$XDG_STATE_HOME/foldfab/resume/`` (default
 ``~/.local/state``), one per token, written atomically::
@@ -30,7 +36,12 @@ Resume states are JSON files in ``$XDG_STATE_HOME/foldfab/resume/`` (default
 ``stroke`` is the index (in ``interpret(program).strokes``) of the first stroke not
 known to be drawn; ``pauses_done`` counts the operator pauses already confirmed;
 ``locate`` is false when the plotter reported an error (it skipped an instruction, so
-its position would place the resume past a stroke it did not draw correctly).
+its position would place the resume past a stroke it did not draw correctly).  A state
+file is input like a job file: :func:`load_state` reads only a regular file of at most
+:data:`STATE_MAX_BYTES`, without following links, and checks every field's type and
+range (the program's own counts in :func:`check_state`); a token is a name matching
+:data:`TOKEN_PATTERN`, the one inside the file must be its file's, so no path ever
+leaves the state folder.
 """
 
 from __future__ import annotations

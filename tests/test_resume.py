@@ -586,3 +586,20 @@ def test_from_stroke_is_checked(args, message, power_cycled, capsys):
         assert main([*base, *[token if a == "TOKEN" else a for a in args]]) == 2
     assert re.search(message, capsys.readouterr().err)
     assert load_state(token).stroke > 0
+
+
+def test_going_back_before_a_confirmed_pause_asks_it_again(opened):
+    """--from-stroke before the flip the operator confirmed: the flip is asked again before the tool moves."""
+    device = load_device("grbl")
+    job = str(ROOT / "jobs/star.toml")
+    program = fabricated(job, "grbl", "two-sided").program
+    line = program.text[:program.pauses[0].offset].count("\n") + 8
+    with pytest.raises(PlotStopped) as stopped:
+        plot(program, device, job=job, port=f"sim://?time=instant&sheet=A3&error_at={line}", operator=lambda m: True)
+    token = stopped.value.token
+    assert load_state(token).pauses_done == 1
+    asked = []
+    plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=token, from_stroke=0,
+         operator=lambda m: asked.append(m) or True)
+    assert asked == [program.pauses[0].message]
+    assert same_strokes(opened[-1].simulator.strokes, strokes_of(program, device))
