@@ -304,8 +304,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
                            f"{shlex.join(command + ['--from-stroke', str(where.acknowledged + 1)])} (from the last "
                            f"acknowledged stroke) or {trusted}") from None
     except ResumeNotStarted as exc:  # once the fault is mended, the same command finishes the job
+        chosen = ["--from-stroke", str(args.from_stroke)] if args.from_stroke else []  # (a stop saves a new state)
         raise FoldfabError(f"{exc}; nothing was sent, and the resume token stays valid: "
-                           f"{shlex.join(_resume_command(args, port, exc.token))}") from None
+                           f"{shlex.join(_resume_command(args, port, exc.token) + chosen)}") from None
     finally:
         for name, handler in previous.items():
             signal.signal(getattr(signal, name), handler)
@@ -322,7 +323,7 @@ def _resume_command(args: argparse.Namespace, port: str, token: str) -> list[str
         if getattr(args, switch) is not None:
             command.append(f"--{switch}" if getattr(args, switch) else f"--no-{switch}")
     command += [f"--{flag.replace('_', '-')}" for flag in ("yes", "json", "allow_penetration") if getattr(args, flag)]
-    return command + ["--resume", token] + (["--from-stroke", str(args.from_stroke)] if args.from_stroke else [])
+    return command + ["--resume", token]
 
 
 def _write_preview(fab, device, output: Path) -> None:

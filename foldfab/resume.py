@@ -76,6 +76,8 @@ TOKEN_PATTERN = re.compile(r"[0-9a-f]{6,32}")
 STATE_MAX_BYTES = 64 * 1024
 """A resume state is a few hundred bytes; a larger file is not one foldfab wrote."""
 _SHA256 = re.compile(r"[0-9a-f]{64}")
+REASON_MAX = 16384
+"""Characters of the stop's reason a state keeps."""
 
 
 def program_hash(program: Program) -> str:
@@ -207,6 +209,7 @@ def _whole(value: object, low: int) -> bool:
 
 
 def _text(limit: int, also: Callable[[str], bool] = lambda v: True) -> Callable[[object], bool]:
+    """A test for text of 1 to ``limit`` characters, no NUL, that passes ``also``."""
     return lambda v: isinstance(v, str) and 0 < len(v) <= limit and "\0" not in v and also(v)
 
 
@@ -226,7 +229,7 @@ _CHECKS: dict[str, tuple[Callable[[object], bool], str]] = {
     "stroke": (lambda v: _whole(v, 0), "a stroke index of at least 0"),
     "strokes": (lambda v: _whole(v, 1), "a stroke count of at least 1"),
     "pauses_done": (lambda v: _whole(v, 0), "a count of at least 0"),
-    "reason": (_text(16384), "the reason the plot stopped (text)"),
+    "reason": (_text(REASON_MAX), "the reason the plot stopped (text)"),
     "locate": (lambda v: isinstance(v, bool), "true or false"),
 }
 """What each field of a resume state must be (version and token are checked on their own)."""
@@ -558,7 +561,7 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
             token = state.token if state is not None else new_token()
             save_state(ResumeState(token, str(Path(job).resolve()), device.name, port,
                                    program_hash(program), len(program.text), stroke, len(strokes),
-                                   pauses_done, str(stop), locate=not stop.plotter_error))
+                                   pauses_done, str(stop)[:REASON_MAX], locate=not stop.plotter_error))
         elif state is not None:
             state.path.unlink(missing_ok=True)
         raise PlotStopped(stop, token, stroke, len(strokes)) from None

@@ -603,3 +603,19 @@ def test_going_back_before_a_confirmed_pause_asks_it_again(opened):
          operator=lambda m: asked.append(m) or True)
     assert asked == [program.pauses[0].message]
     assert same_strokes(opened[-1].simulator.strokes, strokes_of(program, device))
+
+
+def test_the_printed_command_repeats_the_operators_choice_only_while_nothing_was_sent(capsys):
+    """A resume that could not start prints the same command, --from-stroke included; one that stops
+    again saved where, so its command resumes from the new state."""
+    from foldfab.cli import main
+
+    base = ["plot", str(ROOT / "jobs/hexagon-fig8a.toml"), "--device", "grbl", "--port"]
+    assert main([*base, "sim://?time=instant&error_at=60"]) == 2
+    token = re.search(r"resume token (\w+)", capsys.readouterr().err).group(1)
+    assert main([*base, "/dev/nonexistent-plotter", "--resume", token, "--from-stroke", "2"]) == 2
+    assert f"--resume {token} --from-stroke 2\n" in capsys.readouterr().err
+    assert main([*base, "sim://?time=instant&error_at=30", "--resume", token, "--from-stroke", "2"]) == 2
+    err = capsys.readouterr().err
+    assert f"--resume {token}\n" in err and "--from-stroke" not in err
+    assert load_state(token).stroke >= 1
