@@ -252,6 +252,34 @@ class _NotStarted(Exception):
     """A stop (a signal, or no at the prompt) before the first byte was sent."""
 
 
+def _chooser(args: argparse.Namespace, prompting: list[bool]):
+    """Asks, on a terminal (not with --json), where a resume starts when the plotter's position is
+    doubtful proof (:class:`foldfab.resume.Location`); None elsewhere: the resume then stops."""
+    if args.json or not sys.stdin.isatty():
+        return None
+
+    def choose(location) -> int | None:
+        left = location.strokes - location.acknowledged
+        trusted = (f"resume at stroke {location.stroke + 1}, where its position places it" if
+                   location.stroke < location.strokes else "the job is finished: end it (the token is deleted)")
+        print(f"\nfoldfab: where the plot stopped is uncertain: {location.doubt}.\n"
+              f"  a  resume at stroke {location.acknowledged + 1} of {location.strokes}, the last acknowledged "
+              f"({left} strokes; those the plotter drew since are drawn again)\n"
+              f"  p  trust the plotter: {trusted}\n"
+              "  q  stop here; the resume token stays valid", file=sys.stderr)
+        while True:
+            prompting[0] = True  # a signal now ends the question (as no answer), not the plot
+            try:
+                answer = input("Look at the sheet, then type a, p or q and Enter: ").strip().lower()
+            except (EOFError, KeyboardInterrupt):
+                return None
+            finally:
+                prompting[0] = False
+            if answer in ("a", "p", "q"):
+                return {"a": location.acknowledged, "p": location.stroke, "q": None}[answer]
+    return choose
+
+
 def cmd_plot(args: argparse.Namespace) -> int:
     """Build the job's program as ``export`` does, report it, and stream it to the plotter.
 
@@ -299,7 +327,7 @@ def _plot(args: argparse.Namespace, cancel, sending: list[bool], prompting: list
 
     from foldfab.errors import FoldfabError
     from foldfab.progress import reporter
-    from foldfab.resume import PlotStopped, ResumeNotStarted, plot
+    from foldfab.resume import PlotStopped, ResumeAmbiguous, ResumeNotStarted, plot
 
     def checkpoint() -> None:
         if cancel.is_set():
@@ -341,7 +369,9 @@ def _plot(args: argparse.Namespace, cancel, sending: list[bool], prompting: list
     sending[0] = True
     try:
         result = plot(fab.program, device, job=args.job, port=port, resume=args.resume, baudrate=args.baud,
-                      xonxoff=args.xonxoff, rtscts=args.rtscts, events=events, cancel=cancel, operator=operator)
+                      xonxoff=args.xonxoff, rtscts=args.rtscts, events=events, cancel=cancel, operator=operator,
+                      choose=_chooser(args, prompting),
+                      from_stroke=None if args.from_stroke is None else args.from_stroke - 1)
     except PlotStopped as stop:
         message = str(stop)
         if stop.token:
@@ -352,9 +382,23 @@ def _plot(args: argparse.Namespace, cancel, sending: list[bool], prompting: list
         kind = "stopped" if stop.exit_code == 130 else "error"
         print(f"foldfab: {kind}: {message}", file=sys.stderr)
         return stop.exit_code
+    except ResumeAmbiguous as exc:
+        where = exc.location
+        command = _resume_command(args, port, exc.token)
+        if args.json:
+            print(json.dumps({"event": "resume_ambiguous", "token": exc.token, "acknowledged": where.acknowledged + 1,
+                              "located": where.stroke + 1, "strokes": where.strokes, "reason": where.doubt}),
+                  flush=True)
+        trusted = shlex.join(command + ["--from-stroke", str(where.stroke + 1)]) + (
+            " (if the plotter did draw them)" if where.stroke < where.strokes else
+            " (if every stroke is on the sheet: ends the job, deleting the token)")
+        raise FoldfabError(f"{exc}; nothing was sent and the resume token stays valid; look at the sheet, then run "
+                           f"{shlex.join(command + ['--from-stroke', str(where.acknowledged + 1)])} (from the last "
+                           f"acknowledged stroke) or {trusted}") from None
     except ResumeNotStarted as exc:  # once the fault is mended, the same command finishes the job
+        chosen = ["--from-stroke", str(args.from_stroke)] if args.from_stroke else []  # (a stop saves a new state)
         raise FoldfabError(f"{exc}; nothing was sent, and the resume token stays valid: "
-                           f"{shlex.join(_resume_command(args, port, exc.token))}") from None
+                           f"{shlex.join(_resume_command(args, port, exc.token) + chosen)}") from None
     from foldfab.progress import plot_summary
 
     summary = plot_summary(seen.get("start"), seen["last"], result.waited)
@@ -434,6 +478,10 @@ def _add_plot_parser(sub) -> None:
     plot.add_argument("--rtscts", action=argparse.BooleanOptionalAction, default=None,
                       help="hardware flow control on the port (default: the profile's)")
     plot.add_argument("--resume", type=_token, metavar="TOKEN", help="finish a stopped plot (foldfab printed the token)")
+    plot.add_argument("--from-stroke", type=_int_from(1, None, "expected a stroke number, 1 or more"), metavar="N",
+                      help="with --resume: resume at stroke N (as foldfab numbers them; one past the last: the "
+                           "job is done) instead of where the plotter says it stopped; foldfab asks for this "
+                           "when that is uncertain")
     plot.add_argument("--yes", action="store_true", help="start without asking to load the sheet; without a "
                       "terminal, continue at every pause")
     plot.add_argument("--json", action="store_true", help="progress as JSON lines on stdout")
@@ -672,9 +720,11 @@ def _positive_int(text: str) -> int:
 def _token(text: str) -> str:
     """An argparse type: a resume token, not empty (``--resume "$TOKEN"`` with TOKEN unset must not
     plot the whole job again)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("expected the resume token foldfab printed when the plot stopped, "
-                                         "got an empty one")
+    from foldfab.resume import TOKEN_PATTERN
+
+    if not TOKEN_PATTERN.fullmatch(text):
+        raise argparse.ArgumentTypeError("expected the resume token foldfab printed when the plot stopped "
+                                         f"(6 to 32 characters 0-9 and a-f), got {text!r}")
     return text
 
 

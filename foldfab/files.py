@@ -11,6 +11,7 @@ refused, never read whole.
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 from pathlib import Path
@@ -32,18 +33,23 @@ class MissingFile(FoldfabError, FileNotFoundError):
     """The named file does not exist (a caller may say more: catch ``FileNotFoundError``)."""
 
 
-def read_bytes(path: str | os.PathLike, what: str, limit: int) -> bytes:
+def read_bytes(path: str | os.PathLike, what: str, limit: int, follow_links: bool = True) -> bytes:
     """The bytes of the regular file ``path`` (a ``what``: "job file", "SVG file"...), at most ``limit``.
 
     Raises :class:`FoldfabError` naming the path for a missing or unreadable file, a file that
-    is not a regular file, and a file larger than ``limit`` bytes.
+    is not a regular file (or, unless ``follow_links``, a symbolic link), and a file larger
+    than ``limit`` bytes.
     """
     path = Path(path)
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+        fd = os.open(path, flags if follow_links else flags | getattr(os, "O_NOFOLLOW", 0))
     except FileNotFoundError:
         raise MissingFile(f"{path}: {what} not found") from None
     except OSError as exc:
+        if exc.errno == errno.ELOOP and not follow_links:
+            raise FoldfabError(f"{path}: is a symbolic link, not a {what}; foldfab reads its {what}s only "
+                               "where it wrote them") from None
         raise FoldfabError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
     try:
         mode = os.fstat(fd).st_mode
@@ -69,10 +75,11 @@ def read_bytes(path: str | os.PathLike, what: str, limit: int) -> bytes:
         os.close(fd)
 
 
-def read_text(path: str | os.PathLike, what: str, limit: int, encoding: str = "utf-8-sig") -> str:
+def read_text(path: str | os.PathLike, what: str, limit: int, encoding: str = "utf-8-sig",
+              follow_links: bool = True) -> str:
     """:func:`read_bytes` decoded (by default UTF-8, a byte-order mark allowed: some Windows
     editors write one); text that is not UTF-8 is a :class:`FoldfabError` naming the byte."""
-    data = read_bytes(path, what, limit)
+    data = read_bytes(path, what, limit, follow_links)
     try:
         return data.decode(encoding)
     except UnicodeDecodeError as exc:
@@ -81,5 +88,6 @@ def read_text(path: str | os.PathLike, what: str, limit: int, encoding: str = "u
 
 
 def _too_large(path: Path, what: str, limit: int) -> FoldfabError:
-    return FoldfabError(f"{path}: larger than {limit // 2**20} MB, the most foldfab reads of a {what}; "
+    size = f"{limit // 2**20} MB" if limit % 2**20 == 0 else f"{limit} bytes"
+    return FoldfabError(f"{path}: larger than {size}, the most foldfab reads of a {what}; "
                         f"is it the right file?")

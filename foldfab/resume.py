@@ -17,7 +17,13 @@ plotter is therefore asked where its pen is (:func:`locate_resume`): what it sti
 holds is discarded, and the strokes it drew after the last acknowledgement are
 skipped (:func:`first_undrawn` never skips one it did not draw).  A GRBL board that
 resets when its port opens (an Arduino's DTR) has lost its position, so such a job
-resumes at the last acknowledged line.
+resumes at the last acknowledged line.  A position is no proof when it is also the
+power-on state (pen up at the origin: a board switched off and on that does not greet
+looks exactly like one parked there) or when it would place the resume at the end of
+the program while strokes are unacknowledged (:attr:`Location.doubt`): :func:`plot`
+then asks ``choose`` (the command line asks the operator on a terminal) or stops with
+:class:`ResumeAmbiguous`, its token kept; ``from_stroke`` is the operator's answer
+(``--from-stroke N``).  Nothing ever resumes past doubtful evidence by itself.
 
 Resume states are JSON files in ``$XDG_STATE_HOME/foldfab/resume/`` (default
 ``~/.local/state``), one per token, written atomically::
@@ -30,7 +36,12 @@ Resume states are JSON files in ``$XDG_STATE_HOME/foldfab/resume/`` (default
 ``stroke`` is the index (in ``interpret(program).strokes``) of the first stroke not
 known to be drawn; ``pauses_done`` counts the operator pauses already confirmed;
 ``locate`` is false when the plotter reported an error (it skipped an instruction, so
-its position would place the resume past a stroke it did not draw correctly).
+its position would place the resume past a stroke it did not draw correctly).  A state
+file is input like a job file: :func:`load_state` reads only a regular file of at most
+:data:`STATE_MAX_BYTES`, without following links, and checks every field's type and
+range (the program's own counts in :func:`check_state`); a token is a name matching
+:data:`TOKEN_PATTERN`, the one inside the file must be its file's, so no path ever
+leaves the state folder.
 """
 
 from __future__ import annotations
@@ -40,7 +51,8 @@ import json
 import re
 import secrets
 import threading
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
+from functools import partial
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
@@ -56,7 +68,13 @@ if TYPE_CHECKING:
     from foldfab.stream import PenPosition, StreamResult, StreamStopped
 
 STATE_VERSION = 1
-_TOKEN = re.compile(r"[0-9a-f]{6,32}")
+TOKEN_PATTERN = re.compile(r"[0-9a-f]{6,32}")
+"""A token is only ever a name: 6 to 32 lowercase hex digits (never a path)."""
+STATE_MAX_BYTES = 64 * 1024
+"""A resume state is a few hundred bytes; a larger file is not one foldfab wrote."""
+_SHA256 = re.compile(r"[0-9a-f]{64}")
+REASON_MAX = 16384
+"""Characters of the stop's reason a state keeps."""
 
 
 def program_hash(program: Program) -> str:
@@ -90,14 +108,22 @@ class ResumeState:
 
     @property
     def path(self) -> Path:
-        return state_dir() / f"{self.token}.json"
+        return state_path(self.token)
+
+
+def state_path(token: str) -> Path:
+    """The file of the state named ``token``, inside :func:`state_dir` (a token is a name, never a path)."""
+    if not isinstance(token, str) or not TOKEN_PATTERN.fullmatch(token):
+        raise FoldfabError(f"--resume {token}: not a resume token (foldfab prints one when a plot stops: "
+                           "6 to 32 characters 0-9 and a-f)")
+    return state_dir() / f"{token}.json"
 
 
 def new_token() -> str:
     """A short token naming a resume state that does not exist yet."""
     while True:
         token = secrets.token_hex(3)
-        if not (state_dir() / f"{token}.json").exists():
+        if not state_path(token).exists():
             return token
 
 
@@ -111,31 +137,86 @@ def save_state(state: ResumeState) -> Path:
 
 
 def load_state(token: str) -> ResumeState:
-    """The saved state named ``token``; a clear error if there is none or it is unreadable."""
-    if not _TOKEN.fullmatch(token):
-        raise FoldfabError(f"--resume {token}: not a resume token (foldfab prints one when a plot stops)")
-    from foldfab.files import SMALL_LIMIT, read_text
-
-    path = state_dir() / f"{token}.json"
+    """The saved state named ``token``; a clear error if there is none, it is unreadable, or any
+    field is not what foldfab writes (the file is input like a job file: checked, never trusted)."""
+    path = state_path(token)
+    where = f"--resume {token}: {path}"
+    text = _read_state_file(path, token)
     try:
-        data = json.loads(read_text(path, "resume state", SMALL_LIMIT, encoding="utf-8"))
-    except FileNotFoundError:
+        data = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise FoldfabError(f"{where}: cannot read it: not JSON ({exc}); {_DAMAGED}") from None
+    names = [f.name for f in fields(ResumeState)]
+    if not isinstance(data, dict) or set(data) != set(names):
+        got = (f"keys {', '.join(sorted(map(str, set(data) ^ set(names))))} differ" if isinstance(data, dict)
+               else f"a JSON {type(data).__name__}, not an object")
+        raise FoldfabError(f"{where} is not a foldfab resume state ({got}); {_DAMAGED}")
+    version = data["version"]
+    if not _whole(version, 1) or version != STATE_VERSION:
+        raise FoldfabError(f"--resume {token}: {path} has version {_show(version)}; "
+                           f"this foldfab reads version {STATE_VERSION}")
+    checks = dict(_CHECKS, token=(lambda v: v == token, f"the token of its file name, {token!r}"))
+    for key in names:
+        test, expected = checks.get(key, (None, ""))
+        if test is not None and not test(data[key]):
+            raise FoldfabError(f"{where}: {key} = {_show(data[key])}: expected {expected}; {_DAMAGED}")
+    if data["stroke"] >= data["strokes"]:
+        raise FoldfabError(f"{where}: stroke = {data['stroke']}: expected less than strokes "
+                           f"({data['strokes']}): a finished plot has no state; {_DAMAGED}")
+    return ResumeState(**data)
+
+
+_DAMAGED = "the resume state is damaged or not foldfab's: delete it and plot the job again on a new sheet"
+
+
+def _read_state_file(path: Path, token: str) -> str:
+    """The text of a state file: a regular file (not a link, folder or pipe) of at most
+    :data:`STATE_MAX_BYTES` (:func:`foldfab.files.read_text`, links not followed)."""
+    from foldfab.files import MissingFile, read_text
+
+    try:
+        return read_text(path, "resume state", STATE_MAX_BYTES, encoding="utf-8", follow_links=False)
+    except MissingFile:
         raise FoldfabError(f"--resume {token}: no saved plot with that token in {path.parent} "
                            "(it is deleted once the plot finishes)") from None
-    except ValueError as exc:
-        raise FoldfabError(f"--resume {token}: cannot read {path}: {exc}") from None
-    try:
-        state = ResumeState(**data)
-    except TypeError:
-        raise FoldfabError(f"--resume {token}: {path} is not a foldfab resume state") from None
-    if state.version != STATE_VERSION:
-        raise FoldfabError(f"--resume {token}: {path} has version {state.version}; "
-                           f"this foldfab reads version {STATE_VERSION}")
-    return state
 
 
-def check_state(state: ResumeState, program: Program, job: str, device: DeviceProfile) -> None:
-    """Refuse to resume ``state`` with a different job, device or program."""
+def _whole(value: object, low: int) -> bool:
+    """A JSON whole number (not a boolean) of at least ``low``."""
+    return isinstance(value, int) and not isinstance(value, bool) and value >= low
+
+
+def _text(limit: int, also: Callable[[str], bool] = lambda v: True) -> Callable[[object], bool]:
+    """A test for text of 1 to ``limit`` characters, no NUL, that passes ``also``."""
+    return lambda v: isinstance(v, str) and 0 < len(v) <= limit and "\0" not in v and also(v)
+
+
+def _show(value: object) -> str:
+    """``value`` as JSON, cut short: for a message."""
+    text = json.dumps(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+_CHECKS: dict[str, tuple[Callable[[object], bool], str]] = {
+    "created": (_text(64), "a date and time (text)"),
+    "job": (_text(4096, lambda v: Path(v).is_absolute()), "the job file's absolute path"),
+    "device": (_text(256), "a device profile name"),
+    "port": (_text(4096), "a serial port or URL"),
+    "program_sha256": (lambda v: isinstance(v, str) and bool(_SHA256.fullmatch(v)), "64 hex digits"),
+    "program_bytes": (lambda v: _whole(v, 1), "a byte count of at least 1"),
+    "stroke": (lambda v: _whole(v, 0), "a stroke index of at least 0"),
+    "strokes": (lambda v: _whole(v, 1), "a stroke count of at least 1"),
+    "pauses_done": (lambda v: _whole(v, 0), "a count of at least 0"),
+    "reason": (_text(REASON_MAX), "the reason the plot stopped (text)"),
+    "locate": (lambda v: isinstance(v, bool), "true or false"),
+}
+"""What each field of a resume state must be (version and token are checked on their own)."""
+
+
+def check_state(state: ResumeState, program: Program, job: str, device: DeviceProfile,
+                strokes: list[Stroke]) -> None:
+    """Refuse to resume ``state`` with a different job, device or program (``strokes``: the
+    program's), or at a stroke or pause count that program does not have."""
     if state.device != device.name:
         raise FoldfabError(f"--resume {state.token}: that plot ran on device {state.device!r}, "
                            f"not {device.name!r}; use --device {state.device}")
@@ -146,6 +227,15 @@ def check_state(state: ResumeState, program: Program, job: str, device: DevicePr
             f"--resume {state.token}: the program of {job} for {device.name} changed since the plot "
             "stopped (job file, device profile or foldfab version); resuming would misplace the "
             "strokes, so plot the whole job again on a new sheet")
+    where = f"--resume {state.token}: {state.path}"
+    if (state.program_bytes, state.strokes) != (len(program.text), len(strokes)):
+        raise FoldfabError(f"{where}: program_bytes = {state.program_bytes}, strokes = {state.strokes}: "
+                           f"expected {len(program.text)} and {len(strokes)} (this program's); {_DAMAGED}")
+    # (load_state checked stroke < strokes) a pause is confirmed only once every stroke before it is done
+    before = sum(p.offset <= strokes[state.stroke].offset for p in program.pauses)
+    if state.pauses_done > before:
+        raise FoldfabError(f"{where}: pauses_done = {state.pauses_done}: expected at most {before} (the "
+                           f"pauses before stroke {state.stroke + 1}); {_DAMAGED}")
 
 
 def resume_program(program: Program, device: DeviceProfile, stroke: int,
@@ -203,7 +293,7 @@ def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke]
     from foldfab.interpret import pen_states
 
     start = strokes[stroke - 1].end if stroke > 0 else 0
-    tolerance = 0.5 if program.protocol == "hpgl" else 0.0015  # a plotter unit; GRBL's 3 decimals
+    tolerance = _tolerance(program)
     for end, machine in pen_states(program.text, program.protocol, device):
         if end > limit:
             return None
@@ -218,16 +308,50 @@ def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke]
     return None
 
 
-def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: int,
-                  pauses_done: int, **settings) -> tuple[int, str]:
+@dataclass(frozen=True)
+class Location:
+    """Where a resume may start, as far as asking the plotter tells (:func:`locate`)."""
+
+    acknowledged: int
+    """The first stroke not acknowledged: every stroke before it is drawn."""
+    stroke: int
+    """The first stroke the plotter's position says it did not draw (``acknowledged`` when it says nothing)."""
+    strokes: int
+    """How many strokes the program draws."""
+    note: str
+    """How it was found."""
+    doubt: str = ""
+    """Why the position is no proof that the strokes from ``acknowledged`` to ``stroke`` were
+    drawn (empty: it is); the operator then chooses (:class:`ResumeAmbiguous`)."""
+
+    @property
+    def safe(self) -> int:
+        """Where to resume without an operator: no stroke is ever skipped on doubtful evidence."""
+        return self.acknowledged if self.doubt else self.stroke
+
+
+POWER_ON = (0.0, 0.0)
+"""Where a plotter's pen is, up, when it has just been switched on (GRBL without homing: the
+machine origin; HP-GL plotters: their origin)."""
+
+
+def locate(program: Program, device: DeviceProfile, port: str, stroke: int, pauses_done: int,
+           **settings) -> Location:
     """Where to resume: ``stroke`` (the first not acknowledged), moved on past the strokes
     the plotter drew after its host lost it, as far as asking the plotter can tell
-    (:func:`foldfab.stream.locate_pen`, :func:`first_undrawn`).  Returns the stroke and
-    a note saying how it was found.  ``settings`` are :func:`foldfab.transport.open_port`'s."""
+    (:func:`foldfab.stream.locate_pen`, :func:`first_undrawn`).  ``settings`` are
+    :func:`foldfab.transport.open_port`'s.
+
+    A position is doubtful proof (:attr:`Location.doubt`) when it is also the power-on
+    state (a board switched off and on that does not greet on opening looks exactly like
+    one that parked there) or when it places the resume at the end of the program while
+    strokes are unacknowledged."""
     from foldfab.interpret import interpret
     from foldfab.stream import CHECK_EVERY, locate_pen
     from foldfab.transport import open_port
 
+    strokes = interpret(program, device).strokes
+    here = partial(Location, stroke, stroke, len(strokes))
     try:
         link = open_port(port, device, **settings)
         try:
@@ -235,13 +359,10 @@ def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: in
         finally:
             link.close()
     except (FoldfabError, OSError) as exc:
-        return stroke, f"could not ask the plotter where it stopped ({exc})"
+        return here(f"could not ask the plotter where it stopped ({exc})")
     if pen is None:
-        return stroke, ("the plotter was initialized since it stopped (switched off and on, or "
-                        "reset when its port opened), so its position says nothing")
-    strokes = interpret(program, device).strokes
-    if stroke >= len(strokes):
-        return stroke, ""
+        return here("the plotter was initialized since it stopped (switched off and on, or "
+                    "reset when its port opened), so its position says nothing")
     # What the engine can have sent beyond its last acknowledgement (and the queue's last save),
     # never past a pause the operator has not confirmed (the engine stops sending there).
     limit = strokes[stroke].offset + 4 * max(device.buffer.size, CHECK_EVERY)
@@ -249,10 +370,36 @@ def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: in
     if unconfirmed:
         limit = min(limit, unconfirmed[0])
     found = first_undrawn(program, device, strokes, stroke, pen, limit)
+    at = f"{pen.x:g},{pen.y:g} (pen {'down' if pen.down else 'up'})"
     if found is None:
-        return stroke, (f"the pen is at {pen.x},{pen.y}, where this job does not leave it, so its "
-                        "position says nothing")
-    return found, f"the plotter had drawn {found - stroke} more stroke(s) after the last acknowledgement"
+        return here(f"the pen is at {at}, where this job does not leave it, so its position says nothing")
+    note = f"the plotter had drawn {found - stroke} more stroke(s) after the last acknowledgement"
+    if found == stroke:
+        return Location(stroke, found, len(strokes), note)
+    reasons = []
+    if not pen.down and max(abs(pen.x - POWER_ON[0]), abs(pen.y - POWER_ON[1])) <= _tolerance(program):
+        reasons.append("the pen is up at the origin, where a plotter switched off and on is too")
+    if found == len(strokes):
+        reasons.append("that would mean it finished the job on its own")
+    doubt = (f"the plotter's pen is at {at}, where the job leaves it once stroke {found} is drawn, but "
+             f"{' and '.join(reasons)}") if reasons else ""
+    return Location(stroke, found, len(strokes), note, doubt)
+
+
+def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: int,
+                  pauses_done: int, **settings) -> tuple[int, str]:
+    """:func:`locate` for a resume with nobody to ask (the queue worker): the stroke to resume at,
+    never past doubtful evidence, and a note saying how it was found."""
+    found = locate(program, device, port, stroke, pauses_done, **settings)
+    if found.doubt:
+        return found.safe, f"{found.doubt}: resuming at the last acknowledged stroke"
+    return found.stroke, found.note
+
+
+def _tolerance(program: Program) -> float:
+    """How far apart two pen positions (device units) still match: half a plotter unit, GRBL's
+    3 decimals."""
+    return 0.5 if program.protocol == "hpgl" else 0.0015
 
 
 def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
@@ -304,6 +451,18 @@ class ResumeNotStarted(FoldfabError):
         self.token = token
 
 
+class ResumeAmbiguous(ResumeNotStarted):
+    """Where the plot stopped is doubtful (:attr:`Location.doubt`) and nobody chose where to
+    resume: nothing was sent, the token stays valid, and ``location`` holds the choices."""
+
+    def __init__(self, location: Location, token: str):
+        super().__init__(FoldfabError(
+            f"where the plot stopped is uncertain: {location.doubt}; the last acknowledged stroke is "
+            f"{location.acknowledged + 1} of {location.strokes}, so resuming there draws again what the "
+            "plotter may have drawn since, and trusting its position may leave strokes undrawn"), token)
+        self.location = location
+
+
 class PlotStopped(FoldfabError):
     """A plot stopped before its end, after the safe stop; ``token`` names its resume state."""
 
@@ -319,28 +478,34 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
          resume: str | None = None, baudrate: int | None = None, xonxoff: bool | None = None,
          rtscts: bool | None = None, events: Callable[[ProgressEvent], None] | None = None,
          cancel: threading.Event | None = None, operator: Callable[[str], bool] | None = None,
-         stall_timeout: float = 30.0) -> StreamResult:
+         stall_timeout: float = 30.0, from_stroke: int | None = None,
+         choose: Callable[[Location], int | None] | None = None) -> StreamResult:
     """Stream ``program`` (built from the job file ``job``) to ``device`` at ``port``.
 
     With ``resume``, only what the saved state says is left is sent, after checking the
-    program is unchanged; the state is deleted once the plot finishes.  A plot that stops
-    early saves (or updates) its state and raises :class:`PlotStopped`.
+    program is unchanged; the state is deleted once the plot finishes.  ``from_stroke``
+    (an index; the number of strokes: every one is drawn) is the operator's choice of where
+    to resume, instead of asking the plotter;
+    when the plotter's answer is doubtful, ``choose`` is asked (the stroke to resume at, at
+    or past the end: the job is finished; None: stop), and without it
+    :class:`ResumeAmbiguous` is raised.  A plot that stops early saves (or updates) its
+    state and raises :class:`PlotStopped`.
     """
     from foldfab.interpret import interpret
     from foldfab.progress import JobProgress
     from foldfab.stream import StreamStopped, stream
     from foldfab.transport import open_port
 
+    if from_stroke is not None and resume is None:
+        raise FoldfabError("--from-stroke chooses where a stopped plot resumes: give --resume TOKEN too")
     state = load_state(resume) if resume else None
     strokes = interpret(program, device).strokes
     first, sending, pending, note = 0, program, 0, ""
     settings = dict(baudrate=baudrate, xonxoff=xonxoff, rtscts=rtscts)
     if state is not None:
-        check_state(state, program, job, device)
-        first, found = (locate_resume(program, device, port, state.stroke, state.pauses_done, **settings)
-                        if state.locate else
-                        (state.stroke, "the plotter reported an error, so where it stopped is not used"))
-        if first >= len(strokes):  # the plotter drew the rest after its host lost it
+        check_state(state, program, job, device, strokes)
+        first, found = _start(state, program, device, port, strokes, from_stroke, choose, settings)
+        if first >= len(strokes):  # the operator says the plotter drew the rest after its host lost it
             from foldfab.stream import StreamResult
 
             if events is not None:
@@ -348,10 +513,13 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
                 events(JobProgress(program, device).event("done", end, end, 0.0, message=found))
             state.path.unlink(missing_ok=True)
             return StreamResult(0, 0.0, 0.0, 0)
-        note = f"resuming at stroke {first + 1} of {len(strokes)}" + (f": {found}" if found else "")
-        sending = resume_program(program, device, first, state.pauses_done)
         cut = strokes[first].offset
-        pending = sum(p.offset <= cut for p in program.pauses) - state.pauses_done
+        # pauses confirmed, as far as they lie before the stroke resumed at (the operator may go back)
+        confirmed = min(state.pauses_done, sum(p.offset <= cut for p in program.pauses))
+        note = f"resuming at stroke {first + 1} of {len(strokes)}" + (f": {found}" if found else "")
+        sending = resume_program(program, device, first, confirmed)
+        pending = sum(p.offset <= cut for p in program.pauses) - confirmed
+        state = replace(state, pauses_done=confirmed)
     progress = JobProgress(sending, device)
     try:
         link = open_port(port, device, **settings)
@@ -371,7 +539,7 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
             token = state.token if state is not None else new_token()
             save_state(ResumeState(token, str(Path(job).resolve()), device.name, port,
                                    program_hash(program), len(program.text), stroke, len(strokes),
-                                   pauses_done, str(stop), locate=not stop.plotter_error))
+                                   pauses_done, str(stop)[:REASON_MAX], locate=not stop.plotter_error))
         elif state is not None:
             state.path.unlink(missing_ok=True)
         raise PlotStopped(stop, token, stroke, len(strokes)) from None
@@ -380,3 +548,26 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
     if state is not None:
         state.path.unlink(missing_ok=True)
     return result
+
+
+def _start(state: ResumeState, program: Program, device: DeviceProfile, port: str,
+           strokes: list[Stroke], from_stroke: int | None,
+           choose: Callable[[Location], int | None] | None, settings: dict) -> tuple[int, str]:
+    """The stroke a resume starts at and a note saying why: the operator's ``from_stroke``; the
+    last acknowledged one after a plotter error; else where the plotter's position places it,
+    and on doubtful evidence the operator's choice (``choose``; without it, or if the operator
+    declines, :class:`ResumeAmbiguous`, the token kept)."""
+    if from_stroke is not None:
+        if not 0 <= from_stroke <= len(strokes):
+            raise FoldfabError(f"--from-stroke {from_stroke + 1}: expected a stroke of this job's "
+                               f"{len(strokes)} (1 to {len(strokes)}), or {len(strokes) + 1}: every stroke is drawn")
+        return from_stroke, "chosen by the operator (--from-stroke)"
+    if not state.locate:
+        return state.stroke, "the plotter reported an error, so where it stopped is not used"
+    found = locate(program, device, port, state.stroke, state.pauses_done, **settings)
+    if not found.doubt:
+        return found.stroke, found.note
+    chosen = choose(found) if choose is not None else None
+    if chosen is None:
+        raise ResumeAmbiguous(found, state.token)
+    return chosen, f"chosen by the operator: {found.doubt}"

@@ -103,8 +103,9 @@ def test_a_resume_state_that_is_no_regular_file_is_refused(unreadable, tmp_path)
     folder = tmp_path / "state" / "foldfab" / "resume"
     folder.mkdir(parents=True)
     state = folder / f"{token}.json"
-    if path == Path("/dev/zero"):
+    if path == Path("/dev/zero"):  # cannot be moved: a link to it (state files are never read through links)
         state.symlink_to(path)
+        kind = "is a symbolic link"
     else:
         path.rename(state)
     env = {"XDG_STATE_HOME": str(tmp_path / "state")}

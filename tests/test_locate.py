@@ -10,6 +10,7 @@ the interrupted stroke is drawn twice.
 from __future__ import annotations
 
 import itertools
+import threading
 
 import numpy as np
 import pytest
@@ -17,9 +18,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from foldfab.devices import load_device
+from foldfab.errors import FoldfabError
 from foldfab.interpret import GcodeMachine, HPGLMachine, HPGLTokenizer
 from foldfab.progress import JobProgress
-from foldfab.resume import PlotStopped, first_undrawn, load_state, locate_resume, plot, resume_program
+from foldfab.resume import (PlotStopped, ResumeAmbiguous, first_undrawn, load_state, locate, locate_resume,
+                            plot, resume_program)
 from foldfab.stream import PenPosition, StreamStopped, locate_pen, stream
 from foldfab.transport import open_port
 from test_resume import FLOWS, job_for, leading_matches
@@ -279,3 +282,102 @@ def test_a_grbl_board_left_in_a_feed_hold_is_located_and_unlocked():
     drawn = [s for s in plotter.strokes if s.length > 0]
     assert same_points(drawn[len(drawn) - (len(want) - located):], want[located:])
     assert leading_matches(drawn[:len(drawn) - (len(want) - located)], want) >= located
+
+
+# --- a plotter switched off and on between the fault and the resume --------------------------------
+
+HEXAGON = str(ROOT / "jobs/hexagon-fig8a.toml")  # 28 strokes: the issue's job
+POWER_CYCLED = [(flow, "") for flow in HPGL_FLOWS] + [("grbl", "&reset_on_open=0"), ("grbl", "&reset_on_open=1")]
+
+
+def session_plotter(session: str):
+    from foldfab.urlhandler.protocol_sim import _SESSIONS
+
+    return _SESSIONS[session]
+
+
+def cancel_after(count: int, cancel: threading.Event, monkeypatch) -> None:
+    """Ctrl-C once the plotter has received ``count`` bytes (of the ports plot() opens)."""
+    import foldfab.transport
+
+    real = foldfab.transport.open_port
+
+    def counting(url, device, **kw):
+        port = real(url, device, **kw)
+        write = port.write
+        port.write = lambda data: (port.simulator.stats.bytes_received >= count and cancel.set(), write(data))[1]
+        return port
+    monkeypatch.setattr(foldfab.transport, "open_port", counting)
+
+
+def drawn_strokes(plotter) -> list:
+    return [s for s in plotter.strokes if s.length > 0]  # (a GRBL tool resting through a reset: a dot)
+
+
+@pytest.mark.parametrize("fault", ["disconnect", "cancel"])
+@pytest.mark.parametrize("flow, board", POWER_CYCLED, ids=[f"{f}{b.replace('&', '-')}" for f, b in POWER_CYCLED])
+def test_a_plotter_switched_off_and_on_after_a_fault_is_never_taken_for_done(flow, board, fault, xonxoff_device,
+                                                                            tmp_path, monkeypatch):
+    """The cable is pulled (or the plot cancelled), the plotter switched off and on (at the origin,
+    pen up, holding nothing; a GRBL board behind a bridge that does not reset it does not even
+    greet), then the job resumed.  Its position is also where the job parks at its end: that is no
+    proof the job is done.  The resume either starts where nothing is lost, or stops with its token
+    kept and the choice for the operator; choosing the last acknowledged stroke finishes the drawing."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
+    device, fab = job_for(FLOWS[flow], xonxoff_device, job=HEXAGON)
+    want = strokes_of(fab.program, device)
+    ambiguous = 0
+    for cut in (len(fab.program.text) // 4, len(fab.program.text) // 2):
+        session = f"cycled{next(_session)}"
+        url = f"sim://?time=instant&sheet=A3&session={session}{board}"
+        cancel = threading.Event()
+        if fault == "cancel":
+            cancel_after(cut, cancel, monkeypatch)
+        with pytest.raises(PlotStopped) as stopped:
+            plot(fab.program, device, job=HEXAGON, baudrate=FAST_BAUD, cancel=cancel,
+                 port=f"{url}&power_cycle=1" + (f"&disconnect_after={cut}" if fault == "disconnect" else ""))
+        monkeypatch.undo()
+        monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
+        first, token = session_plotter(session), stopped.value.token
+        acked = load_state(token).stroke
+        try:
+            plot(fab.program, device, job=HEXAGON, port=url, resume=token, baudrate=FAST_BAUD)
+        except ResumeAmbiguous as doubt:
+            ambiguous += 1
+            where = doubt.location
+            assert (where.acknowledged, where.strokes) == (acked, len(want)) and where.stroke > acked
+            assert "switched off and on" in str(doubt) and load_state(token).stroke == acked  # token kept
+            asked = []
+            plot(fab.program, device, job=HEXAGON, port=url, resume=token, baudrate=FAST_BAUD,
+                 choose=lambda location: asked.append(location) or location.acknowledged)
+            assert asked == [where]
+        second = session_plotter(session)
+        assert second is not first  # switched off and on
+        resumed = drawn_strokes(second)
+        start = len(want) - len(resumed)
+        assert start <= leading_matches(drawn_strokes(first), want), "strokes left undrawn"
+        assert same_points(resumed, want[start:]) and start >= acked
+        with pytest.raises(FoldfabError, match="no saved plot with that token"):
+            load_state(token)  # finished: deleted
+    if board == "&reset_on_open=0" and fault == "disconnect":
+        assert ambiguous == 2  # (the issue: a board that does not greet, at the origin, pen up)
+
+
+@pytest.mark.parametrize("name", ["hp7475a", "grbl"])
+def test_a_position_at_the_end_of_the_program_is_not_taken_for_done(name):
+    """A plotter that really parked at the end and one that was reset look the same; either way the
+    queue worker (nobody to ask) resumes at the last acknowledged stroke, and :func:`locate` says why."""
+    device = load_device(name)
+    program = fabricated(HEXAGON, name).program
+    url = f"sim://?time=instant&sheet=A3&session=parked{next(_session)}&reset_on_open=0"
+    port = open_port(url, device, baudrate=FAST_BAUD)
+    stream(port, program, device)  # the whole job: the plotter parks at the origin, pen up
+    port.simulator.run_until_idle()
+    if name == "hp7475a":
+        port = open_port(url, device, baudrate=FAST_BAUD)
+        port.write(b"OS;")  # (the job's IN set "initialized": read it, as the engine does)
+        port.read_until(b"\r")
+    found = locate(program, device, url, 20, 0, baudrate=FAST_BAUD)
+    assert (found.acknowledged, found.stroke, found.safe) == (20, 28, 20)
+    assert "finished the job on its own" in found.doubt and "switched off and on" in found.doubt
+    assert locate_resume(program, device, url, 20, 0, baudrate=FAST_BAUD)[0] == 20

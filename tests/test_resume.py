@@ -9,6 +9,8 @@ it), then compare both recordings with the program.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import json
 import re
 import threading
@@ -309,14 +311,15 @@ def test_a_changed_program_device_or_job_is_refused():
     job = str(ROOT / "jobs/star.toml")
     state = ResumeState("abcdef", str(Path(job).resolve()), "grbl", "sim://", program_hash(program),
                         len(program.text), 3, 36, 0, "why")
-    check_state(state, program, job, device)
+    strokes = strokes_of(program, device)
+    check_state(state, program, job, device, strokes)
     changed = replace(program, text=program.text.replace("F1800", "F1801"))
     with pytest.raises(FoldfabError, match="changed since the plot stopped"):
-        check_state(state, changed, job, device)
+        check_state(state, changed, job, device, strokes)
     with pytest.raises(FoldfabError, match="ran on device 'grbl', not 'hp7475a'"):
-        check_state(state, program, job, load_device("hp7475a"))
+        check_state(state, program, job, load_device("hp7475a"), strokes)
     with pytest.raises(FoldfabError, match="that plot was"):
-        check_state(state, program, str(ROOT / "jobs/helix-fig12.toml"), device)
+        check_state(state, program, str(ROOT / "jobs/helix-fig12.toml"), device, strokes)
 
 
 @pytest.fixture
@@ -387,3 +390,233 @@ def test_pauses_confirmed_before_the_stop_are_not_asked_again(opened, state_home
     plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=stopped.value.token,
          operator=lambda m: asked.append(m) or True)
     assert asked == []
+
+
+# --- hostile resume states: checked like a job file, the token only ever a name -----------------
+
+
+def stopped_state(job: str = str(ROOT / "jobs/star.toml"), name: str = "grbl", strategy: str = "force"):
+    """A job stopped on a plotter error: its device, program, state file and the state as JSON."""
+    device = load_device(name)
+    program = fabricated(job, name, strategy).program
+    with pytest.raises(PlotStopped) as stopped:
+        plot(program, device, job=job, port="sim://?time=instant&sheet=A3&error_at=60")
+    path = load_state(stopped.value.token).path
+    return device, program, path, json.loads(path.read_text())
+
+
+def resume_with(device, program, job: str = str(ROOT / "jobs/star.toml"), **kw):
+    return plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=kw.pop("token"), **kw)
+
+
+BAD_FIELDS = [
+    ("stroke", "x"), ("stroke", 3.5), ("stroke", None), ("stroke", True), ("stroke", -1), ("stroke", [3]),
+    ("stroke", 36), ("stroke", 10 ** 30),  # at or past the end: not "done"
+    ("strokes", 0), ("strokes", "36"), ("strokes", 35), ("strokes", 37),
+    ("pauses_done", "x"), ("pauses_done", -1), ("pauses_done", None), ("pauses_done", 1),
+    ("job", None), ("job", 5), ("job", ""), ("job", "jobs/star.toml"), ("job", "/a\0b"),
+    ("device", None), ("device", ""), ("port", None), ("port", 7), ("port", ""),
+    ("program_sha256", "0" * 63), ("program_sha256", None), ("program_bytes", "2823"), ("program_bytes", 0),
+    ("program_bytes", 2822), ("locate", "yes"), ("locate", 1), ("locate", None),
+    ("created", 5), ("created", "x" * 65), ("reason", None), ("reason", "x" * 20000),
+    ("token", "../../../../tmp/victim"), ("token", None), ("token", "abcdee"),
+    ("version", "1"), ("version", True), ("version", None), ("version", 1.0),
+]
+
+
+@pytest.mark.parametrize("key, value", BAD_FIELDS, ids=[f"{k}={json.dumps(v)[:20]}" for k, v in BAD_FIELDS])
+def test_every_field_of_a_resume_state_is_checked(key, value, opened):
+    """A field of the wrong type or range is a one-line error naming the file and the field, the
+    state is kept and no port is opened (no traceback, no "done" for a stroke past the end)."""
+    device, program, path, data = stopped_state()
+    opened.clear()
+    data[key] = value
+    path.write_text(json.dumps(data))
+    with pytest.raises(FoldfabError) as error:
+        resume_with(device, program, token=path.stem)
+    message = str(error.value)
+    assert str(path) in message and "\n" not in message
+    assert (f"has version {json.dumps(value)}" if key == "version" else f"{key} = ") in message, message
+    assert path.read_text() == json.dumps(data) and not opened  # kept as it was; nothing sent
+
+
+@pytest.mark.parametrize("content, message", [
+    pytest.param(lambda d: json.dumps(d) + " " * 70_000, "larger than 65536 bytes", id="larger than 64 KiB"),
+    pytest.param(lambda d: "[" * 50_000, "not JSON", id="deeply nested"),
+    pytest.param(lambda d: json.dumps(d).encode("utf-16"), "not UTF-8", id="not UTF-8"),
+    pytest.param(lambda d: json.dumps([d]), "not a foldfab resume state \\(a JSON list", id="a list"),
+    pytest.param(lambda d: json.dumps(dict(d, extra=1)), "not a foldfab resume state \\(keys extra differ",
+                 id="an unknown key"),
+    pytest.param(lambda d: json.dumps({k: v for k, v in d.items() if k != "locate"}),
+                 "not a foldfab resume state \\(keys locate differ", id="a missing key"),
+])
+def test_a_state_file_that_foldfab_did_not_write_is_refused(content, message):
+    """A state file is read only if it is small, UTF-8 JSON, and has exactly foldfab's keys; the
+    error says which of these it is not."""
+    device, program, path, data = stopped_state()
+    text = content(data)
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with pytest.raises(FoldfabError, match=message):
+        resume_with(device, program, token=path.stem)
+
+
+@pytest.mark.timeout(60)  # a pipe would block a reader that opens it without O_NONBLOCK
+@pytest.mark.parametrize("kind", ["symlink", "folder", "pipe"])
+def test_a_state_that_is_not_a_regular_file_is_refused(kind, tmp_path):
+    """A link (to a state written elsewhere), a folder or a named pipe in the state folder is not read."""
+    import os
+
+    device, program, path, data = stopped_state()
+    elsewhere = tmp_path / "elsewhere.json"
+    elsewhere.write_text(path.read_text())
+    path.unlink()
+    if kind == "symlink":
+        path.symlink_to(elsewhere)
+    elif kind == "folder":
+        path.mkdir()
+    else:
+        os.mkfifo(path)
+    with pytest.raises(FoldfabError, match={"symlink": "is a symbolic link", "folder": "is a folder",
+                                            "pipe": r"is a FIFO"}[kind]):
+        resume_with(device, program, token=path.stem)
+    assert elsewhere.read_text() == json.dumps(data, indent=2) + "\n"
+
+
+@pytest.mark.parametrize("finish", [True, False], ids=["resume-finishes", "resume-stops-again"])
+def test_a_token_inside_the_file_never_reaches_outside_the_state_folder(finish, state_home, tmp_path):
+    """The token inside the file named ``../../../victim`` once deleted a file outside the state folder
+    (a finished resume) or wrote one there (a stopped one)."""
+    device, program, path, data = stopped_state()
+    victim = tmp_path / "victim.json"
+    victim.write_text("precious")
+    data["token"] = "../../../victim"
+    assert (path.parent / f"{data['token']}.json").resolve() == victim.resolve()
+    path.write_text(json.dumps(data))
+    port = "sim://?time=instant&sheet=A3" + ("" if finish else "&error_at=20")
+    with pytest.raises(FoldfabError, match="token = "):
+        plot(program, device, job=str(ROOT / "jobs/star.toml"), port=port, resume=path.stem)
+    assert victim.read_text() == "precious"
+    assert sorted(p.name for p in path.parent.iterdir()) == [path.name]
+
+
+@pytest.mark.parametrize("token", ["../../x", "/tmp/victim", "ABCDEF", "abc", "abcdef.json", "a" * 33])
+def test_a_token_on_the_command_line_is_only_a_name(token, capsys):
+    from foldfab.cli import main
+
+    with pytest.raises(SystemExit) as exited:
+        main(["plot", str(ROOT / "jobs/star.toml"), "--device", "grbl", "--port", "sim://", "--resume", token])
+    assert exited.value.code == 2
+    assert "6 to 32 characters 0-9 and a-f" in capsys.readouterr().err
+
+
+# --- the operator's choice when where a plot stopped is uncertain (foldfab plot) -------------------
+
+
+_sessions = itertools.count()
+
+
+@pytest.fixture
+def power_cycled(capsys):
+    """A GRBL job whose cable was pulled and whose board was switched off and on (it does not greet):
+    the resume command's arguments (without --resume), the token and the session's name."""
+    from foldfab.cli import main
+
+    session = f"cli-cycled-{next(_sessions)}"
+    url = f"sim://?time=instant&session={session}&reset_on_open=0"
+    job = str(ROOT / "jobs/hexagon-fig8a.toml")
+    assert main(["plot", job, "--device", "grbl", "--port", f"{url}&disconnect_after=700&power_cycle=1"]) == 2
+    token = re.search(r"resume token (\w+)", capsys.readouterr().err).group(1)
+    return ["plot", job, "--device", "grbl", "--port", url], token, session
+
+
+def test_without_a_terminal_an_uncertain_resume_stops_and_says_what_to_run(power_cycled, capsys):
+    """The issue: a board at its power-on state, which is also where the job parks, once made a resume
+    report "done" with 23 strokes undrawn.  Without a terminal (or with --json) foldfab stops with
+    exit 2, keeps the token, and prints the two commands to choose from; the chosen one finishes."""
+    from foldfab.cli import main
+    from foldfab.urlhandler.protocol_sim import _SESSIONS
+
+    args, token, session = power_cycled
+    assert main([*args, "--resume", token, "--json"]) == 2
+    out, err = capsys.readouterr()
+    event = json.loads(out.splitlines()[-1])
+    assert event["event"] == "resume_ambiguous" and event["token"] == token
+    acked, strokes = event["acknowledged"], event["strokes"]
+    assert acked < strokes and event["located"] == strokes + 1 and "switched off and on" in event["reason"]
+    assert err.count("\n") == 1 and "where the plot stopped is uncertain" in err
+    assert f"--resume {token} --from-stroke {acked} (from the last acknowledged stroke)" in err
+    assert f"--from-stroke {strokes + 1} (if every stroke is on the sheet" in err
+    assert load_state(token).stroke == acked - 1  # kept, unchanged
+    assert main([*args, "--resume", token, "--from-stroke", str(acked)]) == 0
+    want = strokes_of(fabricated(args[1], "grbl").program, load_device("grbl"))
+    assert len([s for s in _SESSIONS[session].strokes if s.length > 0]) == len(want) - acked + 1
+    with pytest.raises(FoldfabError, match="no saved plot"):
+        load_state(token)
+
+
+@pytest.mark.parametrize("answer", ["a", "p", "q"])
+def test_on_a_terminal_the_operator_is_asked(answer, power_cycled, capsys, monkeypatch):
+    from foldfab.cli import main
+    from foldfab.urlhandler.protocol_sim import _SESSIONS
+
+    args, token, session = power_cycled
+    answers = iter(["", "maybe", answer])
+    monkeypatch.setattr("sys.stdin.isatty", lambda: True)
+    monkeypatch.setattr("builtins.input", lambda prompt: next(answers))
+    code = main([*args, "--resume", token])
+    err = capsys.readouterr().err
+    assert "a  resume at stroke" in err and "p  trust the plotter: the job is finished" in err and "q  stop here" in err
+    drawn = [s for s in _SESSIONS[session].strokes if s.length > 0]
+    if answer == "q":
+        assert code == 2 and load_state(token).stroke > 0 and not drawn
+        return
+    assert code == 0 and not (state_dir() / f"{token}.json").exists()
+    assert bool(drawn) == (answer == "a")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--from-stroke", "3"], "give --resume TOKEN too"),
+    (["--resume", "TOKEN", "--from-stroke", "0"], "expected a stroke number, 1 or more"),
+    (["--resume", "TOKEN", "--from-stroke", "30"], "expected a stroke of this job's 28 \\(1 to 28\\), or 29"),
+])
+def test_from_stroke_is_checked(args, message, power_cycled, capsys):
+    from foldfab.cli import main
+
+    base, token, _ = power_cycled
+    with pytest.raises(SystemExit) if "1 or more" in message else contextlib.nullcontext():
+        assert main([*base, *[token if a == "TOKEN" else a for a in args]]) == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert load_state(token).stroke > 0
+
+
+def test_going_back_before_a_confirmed_pause_asks_it_again(opened):
+    """--from-stroke before the flip the operator confirmed: the flip is asked again before the tool moves."""
+    device = load_device("grbl")
+    job = str(ROOT / "jobs/star.toml")
+    program = fabricated(job, "grbl", "two-sided").program
+    line = program.text[:program.pauses[0].offset].count("\n") + 8
+    with pytest.raises(PlotStopped) as stopped:
+        plot(program, device, job=job, port=f"sim://?time=instant&sheet=A3&error_at={line}", operator=lambda m: True)
+    token = stopped.value.token
+    assert load_state(token).pauses_done == 1
+    asked = []
+    plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=token, from_stroke=0,
+         operator=lambda m: asked.append(m) or True)
+    assert asked == [program.pauses[0].message]
+    assert same_strokes(opened[-1].simulator.strokes, strokes_of(program, device))
+
+
+def test_the_printed_command_repeats_the_operators_choice_only_while_nothing_was_sent(capsys):
+    """A resume that could not start prints the same command, --from-stroke included; one that stops
+    again saved where, so its command resumes from the new state."""
+    from foldfab.cli import main
+
+    base = ["plot", str(ROOT / "jobs/hexagon-fig8a.toml"), "--device", "grbl", "--port"]
+    assert main([*base, "sim://?time=instant&error_at=60"]) == 2
+    token = re.search(r"resume token (\w+)", capsys.readouterr().err).group(1)
+    assert main([*base, "/dev/nonexistent-plotter", "--resume", token, "--from-stroke", "2"]) == 2
+    assert f"--resume {token} --from-stroke 2\n" in capsys.readouterr().err
+    assert main([*base, "sim://?time=instant&error_at=30", "--resume", token, "--from-stroke", "2"]) == 2
+    err = capsys.readouterr().err
+    assert f"--resume {token}\n" in err and "--from-stroke" not in err
+    assert load_state(token).stroke >= 1

@@ -101,6 +101,7 @@ class Simulator:
         self.stall_at = 4 * self.size if options.stall_at is None else options.stall_at
         self.stall_done = options.stall == 0
         self.disconnected = False
+        self.opened = 0  # ports opened to it so far (``power_cycle`` acts at the second)
         self.unplug_at = options.disconnect_after  # None once the cable has been pulled
         self.wire_free = 0.0  # when the host's next byte can start on the wire
         self.host_flow: frozenset[str] = frozenset()  # what the host's driver obeys

@@ -25,6 +25,12 @@ Every option, its type and meaning (the fault options describe what a test provo
 ``stall``              seconds the device stops consuming and answering, once
 ``stall_at``           received byte count that starts the stall (default: four buffers)
 ``mute``               1: the device never answers: no banner, replies, XON; CTS low
+``power_cycle``        1: the plotter is switched off and on once the first port to it has
+                       closed or lost its cable: the next open finds a fresh one (at the
+                       origin, pen up, holding nothing, initialized; a GRBL board greets
+                       only with ``reset_on_open``), with this setup (time, sheet, flow,
+                       buffer, planner, reset_on_open) and no fault options; with
+                       ``session``, or a simulator given to the port
 ``session``            ``sim://`` only: ports opened with the same session name in one
                        process share one plotter, as when a cable is unplugged and plugged
                        back in (the first open creates it; later opens ignore the other
@@ -35,7 +41,7 @@ Every option, its type and meaning (the fault options describe what a test provo
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Iterable
 
 from foldfab.devices import FLOW_CONTROLS, parse_sheet
@@ -63,7 +69,16 @@ class SimOptions:
     stall: float = 0.0
     stall_at: int | None = None
     mute: bool = False
+    power_cycle: bool = False
     session: str | None = None
+
+    FAULTS = ("disconnect_after", "error_at", "error_code", "noise", "seed", "stall", "stall_at",
+              "mute", "power_cycle")
+    """What a test provokes (spent when the plotter is switched off and on: ``power_cycle``)."""
+
+    def switched_on(self) -> SimOptions:
+        """These options without the faults: the plotter after ``power_cycle``."""
+        return replace(self, **{name: getattr(SimOptions, name) for name in self.FAULTS})
 
     def as_dict(self) -> dict:
         """The options that differ from the defaults, for reports."""
@@ -117,6 +132,7 @@ _PARSERS = {
     "stall": ("seconds >= 0", _seconds),
     "stall_at": ("a byte count", _count(0)),
     "mute": ("0 or 1", _flag),
+    "power_cycle": ("0 or 1", _flag),
     "session": ("a name of letters, digits, '.', '_' or '-'",
                 lambda t: t if re.fullmatch(r"[\w.-]+", t) else None),
 }

@@ -8,7 +8,9 @@ simulator to ``port.simulator`` to plug the cable back into the same device; the
 ``session=NAME`` option does the same by name (every open with that session in this
 process reaches the plotter the first one created).  The plotter runs on while no port
 is open to it: opening one brings it up to the clock's present first, so the reset of a
-GRBL board at open finds the moves that ended meanwhile ended (no ``ALARM:3``).
+GRBL board at open finds the moves that ended meanwhile ended (no ``ALARM:3``).  With
+``power_cycle=1`` the second open finds it switched off and on: a fresh simulator takes
+its place (in ``port.simulator`` and the session; the old one keeps what it drew).
 
 The port's settings act as a host driver's would: ``baudrate``, ``bytesize``,
 ``parity`` and ``stopbits`` set the wire time; with ``xonxoff`` the driver stops
@@ -49,6 +51,17 @@ caused by another thread's write is seen at once (ports are shared by a reader a
 writer thread; the lock keeps the simulator consistent)."""
 
 
+def _switched_on(old: Simulator) -> Simulator:
+    """A fresh simulator for ``old``'s plotter after a power cycle; the session reaches it from now on."""
+    from foldfab.sim import create_simulator
+
+    new = create_simulator(old.device, old.options.switched_on())
+    with _SESSIONS_LOCK:
+        if _SESSIONS.get(old.options.session) is old:
+            _SESSIONS[old.options.session] = new
+    return new
+
+
 class Serial(SerialBase):
     """A simulated plotter behind pyserial's port API."""
 
@@ -71,6 +84,9 @@ class Serial(SerialBase):
                 self.simulator = self._create(self._port)
             except FoldfabError as exc:
                 raise SerialException(str(exc)) from None
+        if self.simulator.options.power_cycle and self.simulator.opened:
+            self.simulator = _switched_on(self.simulator)
+        self.simulator.opened += 1
         with self._lock:
             # The board ran on while no port was open (a session's or a given simulator): bring
             # it up to now first, so that the reset at open sees the moves that are over as over.
