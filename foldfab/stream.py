@@ -475,6 +475,21 @@ class _HPGLSender(_Sender):
         self.heard = 0.0  # when the plotter last answered a marker or a probe
         self.failed_mark: int | None = None  # what a marker answered instead of 0 (None: garbled)
         self.ends = [i + 1 for i, byte in enumerate(self.data) if byte == ord(";")]
+        self.check_instructions()
+
+    def check_instructions(self) -> None:
+        """Refuse a program with an instruction longer than the buffer allows: the sender
+        would wait for room for it forever (``escb``), or check the plotter in its middle
+        (``none``)."""
+        limit = self.device.buffer.instruction_limit
+        start = 0
+        for end in self.ends:
+            if end - start > limit:
+                raise FoldfabError(
+                    f"program instruction at byte {start} is {end - start} bytes long; "
+                    f"{self.device.name}'s {self.size}-byte buffer takes HP-GL instructions of at "
+                    f"most {limit}: write the program again for this profile (foldfab splits long PD lists)")
+            start = end
 
     def send_program(self) -> None:
         pauses = sorted(self.program.pauses, key=lambda p: p.offset)

@@ -21,12 +21,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from test_interpret import make_document
 
 from foldfab.design import load_design
-from foldfab.devices import load_device
+from foldfab.devices import BufferSettings, load_device
 from foldfab.fabrication import fabricate, parse_fabrication
 from foldfab.interpret import interpret
 from foldfab.progress import JobProgress
+from foldfab.errors import FoldfabError
+from foldfab.hpgl import write_hpgl
+from foldfab.plan import Pass, PlotPlan
 from foldfab.stream import GRBL_RX_BUFFER, StreamStopped, stream
 from foldfab.transport import open_port
 
@@ -237,6 +243,48 @@ def test_two_sided_job_pauses_for_the_flip_and_is_answered(name, xonxoff_device)
     assert stop.value.lifted and not stop.value.cancelled
     assert len(port.simulator.strokes) == before
     assert JobProgress(fab.program, device).strokes_done(stop.value.acknowledged) == before
+
+
+# --- instructions longer than the buffer ------------------------------------------------------
+
+
+def small_buffer_device(flow: str, size: int):
+    """The HP 7475A with a ``size``-byte buffer and the handshake ``flow``."""
+    device = load_device("hp7475a")
+    serial = replace(device.serial, xonxoff=flow == "xonxoff", rtscts=flow == "rtscts")
+    return replace(device, serial=serial, buffer=BufferSettings(size, flow))
+
+
+def long_lines_plan(device) -> PlotPlan:
+    """Two lines of 30 and 12 points: PD lists of hundreds of bytes on one sheet."""
+    zigzag = [complex(20 + 6 * k, 40 + 30 * (k % 2)) for k in range(30)]
+    spiral = [complex(150 + 40 * np.cos(k), 120 + 40 * np.sin(k)) for k in range(12)]
+    return PlotPlan(make_document({1: [zigzag, spiral]}), [Pass(1, "valley", device.tool_for("valley"))],
+                    device.sheet)
+
+
+@settings(max_examples=24, deadline=None)
+@given(st.sampled_from(["escb", "xonxoff", "rtscts", "none"]), st.integers(32, 300))
+def test_lines_longer_than_the_buffer_stream_with_every_flow_control(flow, size):
+    """A 300-byte PD on a 32-byte buffer: written in pieces that fit, drawn exactly, no stall."""
+    device = small_buffer_device(flow, size)
+    program = write_hpgl(long_lines_plan(device), device)
+    port = sim_port(device, f"buffer={size}", baudrate=FAST_BAUD)
+    run(port, program, device, stall_timeout=3.0)
+    assert port.simulator.stats.bytes_lost == 0 and not port.simulator.stats.errors
+    assert same_strokes(port.simulator.strokes, strokes_of(program, device))
+    assert len(strokes_of(program, device)) == 2
+
+
+def test_a_program_with_an_instruction_longer_than_the_buffer_allows_is_refused_before_sending():
+    """A program written for a larger buffer would deadlock the sender: a one-line error instead."""
+    big, small = small_buffer_device("escb", 1024), small_buffer_device("escb", 64)
+    program = write_hpgl(long_lines_plan(big), big)
+    port = sim_port(small, "buffer=64", baudrate=FAST_BAUD)
+    with pytest.raises(FoldfabError, match=r"program instruction at byte \d+ is \d+ bytes long; "
+                                           r"hp7475a's 64-byte buffer takes HP-GL instructions of at most 32"):
+        run(port, program, small)
+    assert not port.written
 
 
 # --- a naive sender loses data, foldfab does not ---------------------------------------------
