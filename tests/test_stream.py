@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_interpret import make_document
+from test_interpret import make_document, sample_plan
 
 from foldfab.design import load_design
 from foldfab.devices import BufferSettings, load_device
@@ -33,6 +33,7 @@ from foldfab.progress import JobProgress
 from foldfab.errors import FoldfabError
 from foldfab.hpgl import write_hpgl
 from foldfab.plan import Pass, PlotPlan
+from foldfab.program import write_program
 from foldfab.stream import GRBL_RX_BUFFER, StreamStopped, stream
 from foldfab.transport import open_port
 
@@ -162,13 +163,13 @@ def test_every_job_every_device_draws_the_program(job, name, xonxoff_device):
 
 def marker_offsets(written: bytes, program: bytes) -> list[int]:
     """Program offsets after which the sender wrote an inline ``OE;`` (checkpoints included),
-    checking that the rest of what it wrote is the program, a setup ``OS;`` and device-control
-    questions (``ESC.B``)."""
+    checking that the rest of what it wrote is the program, a setup ``OS;``, position questions
+    (``OA;``) and device-control questions (``ESC.B``)."""
     offsets, rest = [], bytearray()
-    for part in re.split(rb"(OE;|OS;|\x1b\.B)", written):
+    for part in re.split(rb"(OE;|OS;|OA;|\x1b\.B)", written):
         if part == b"OE;":
             offsets.append(len(rest))
-        elif part not in (b"OS;", b"\x1b.B"):
+        elif part not in (b"OS;", b"OA;", b"\x1b.B"):
             rest += part
     assert bytes(rest) == program
     return offsets
@@ -282,9 +283,76 @@ def test_a_program_with_an_instruction_longer_than_the_buffer_allows_is_refused_
     program = write_hpgl(long_lines_plan(big), big)
     port = sim_port(small, "buffer=64", baudrate=FAST_BAUD)
     with pytest.raises(FoldfabError, match=r"program instruction at byte \d+ is \d+ bytes long; "
-                                           r"hp7475a's 64-byte buffer takes HP-GL instructions of at most 32"):
+                                           r"hp7475a's 64-byte buffer takes HP-GL instructions of at most 61"):
         run(port, program, small)
     assert not port.written
+
+
+# --- line noise that keeps the program valid: position checks ------------------------------------
+
+
+class Garble(Spy):
+    """Line noise that keeps the program valid: the last byte of the ``occurrence``-th
+    ``pattern`` the host writes arrives as ``replacement``."""
+
+    def __init__(self, port, pattern: bytes, replacement: bytes, occurrence: int):
+        super().__init__(port, grbl=port.simulator.protocol == "gcode")
+        object.__setattr__(self, "_garble", [pattern, replacement, occurrence, b""])
+
+    def write(self, data):
+        pattern, replacement, occurrence, tail = self._garble
+        out = bytearray()
+        for byte in data:
+            tail = (tail + bytes([byte]))[-len(pattern):]
+            if tail == pattern:
+                occurrence -= 1
+                if occurrence == 0:
+                    byte = replacement[0]
+            out.append(byte)
+        self._garble[2:] = [occurrence, tail]
+        return super().write(bytes(out))
+
+
+def garbled_park(name: str, occurrence: int, xonxoff_device: str):
+    """The sample plan (a pause, then the end) on ``name``, with the ``occurrence``-th park's
+    last digit garbled in transit."""
+    device = device_for(name, xonxoff_device)
+    program = write_program(sample_plan(device), device)
+    if device.protocol == "hpgl":
+        pattern = "PU{},{}".format(*device.park_units)
+    else:
+        pattern = "\nX{:g} Y{:g}".format(*device.motion.park)
+    assert program.text.count(pattern) == 2  # the park before the pause, and at the end
+    wrong = str((int(pattern[-1]) + 5) % 10).encode()
+    port = open_port(SIM, device, baudrate=FAST_BAUD)
+    return device, program, Garble(port, pattern.encode(), wrong, occurrence)
+
+
+@pytest.mark.parametrize("name", DEVICE_NAMES)
+@pytest.mark.parametrize("occurrence", [1, 2], ids=["at-the-pause", "at-the-end"])
+def test_a_pen_position_that_disagrees_with_the_program_stops_the_job(name, occurrence, xonxoff_device):
+    """A digit garbled in transit is valid HP-GL or G-code: no plotter error.  The position
+    read back (HP-GL OA, GRBL MPos) at the pause and at the end tells: the job stops there,
+    the tool lifted, the operator is not asked, and it is not reported done."""
+    device, program, port = garbled_park(name, occurrence, xonxoff_device)
+    asked = []
+    with pytest.raises(StreamStopped) as stop:
+        stream(port, program, device, operator=lambda message: asked.append(message) or True)
+    assert "expected 0,0" in str(stop.value) and "line noise or lost steps" in str(stop.value)
+    assert stop.value.lifted and stop.value.plotter_error and not stop.value.cancelled
+    (pause,) = program.pauses
+    assert len(asked) == occurrence - 1
+    assert stop.value.acknowledged < (pause.offset if occurrence == 1 else len(program.text))
+    assert port.simulator.stats.bytes_lost == 0
+
+
+@pytest.mark.parametrize("name", ["hp7475a", "graphtec-ce6000", "roland-gx24", "xonxoff"])
+def test_an_hpgl_job_is_done_once_its_last_position_check_agreed(name, xonxoff_device):
+    device, program, port = garbled_park(name, 3, xonxoff_device)  # nothing garbled
+    result = stream(port, program, device, operator=lambda message: True)
+    assert result.sent == len(program.text)
+    written = bytes(port.written)  # the last question of the job is where the pen is
+    assert b"OE;OA;" in written[written.rindex(program.text[-10:].encode()):]
 
 
 # --- a naive sender loses data, foldfab does not ---------------------------------------------
