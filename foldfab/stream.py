@@ -105,6 +105,9 @@ CHECK_EVERY = 512
 """HP-GL: bytes between checkpoints (at most one buffer): without inline markers an
 HP-GL error is found within this many bytes, and a resume after it draws these bytes'
 strokes again."""
+VERIFY_EVERY = 4 * CHECK_EVERY
+"""HP-GL: bytes between position checks (``OA`` with a checkpoint's ``OE``) besides those at
+pauses and at the end: the answer's round trip costs link time (about 2% at every checkpoint)."""
 LEAD = 1.0
 """HP-GL with inline markers: seconds of work (by the estimate) the sender lets the plotter
 hold beyond the stroke it is drawing.  Markers tell the moment each stroke is done, so a
@@ -475,7 +478,7 @@ class _HPGLSender(_Sender):
         self.cts_line = True  # the port can report CTS
         self.check_every = min(self.size, CHECK_EVERY)
         self.checked = 0  # program bytes executed at the last checkpoint
-        self.verified = -1  # program offset of the last checkpoint (its position agreed)
+        self.verified = -1  # program offset of the last position check that agreed
         self.xoff = False
         self.credit = 0  # escb: bytes that fit by the last answer to ESC.B
         self.capacity = 0  # escb: the most free space ever reported (an empty buffer)
@@ -542,10 +545,10 @@ class _HPGLSender(_Sender):
         self.checkpoint()
         for mark in pauses:
             self.send_until(mark.offset)
-            self.checkpoint()
+            self.checkpoint(final=True)
             self.ask_operator(mark.message)
         self.send_until(len(self.data))
-        self.checkpoint()
+        self.checkpoint(final=True)
 
     # -- sending --------------------------------------------------------------------------
     def command_end(self, offset: int, limit: int) -> int:
@@ -874,9 +877,10 @@ class _HPGLSender(_Sender):
         finally:
             self.port.timeout = timeout
 
-    def checkpoint(self) -> None:
-        """Wait until the plotter has executed everything sent and check its error register."""
-        if self.sent == self.verified:  # (a marker's answer alone does not check the position)
+    def checkpoint(self, final: bool = False) -> None:
+        """Wait until the plotter has executed everything sent and check its error register,
+        and its position at a pause, at the end (``final``) and every :data:`VERIFY_EVERY` bytes."""
+        if self.sent == self.checked and self.sent and (not final or self.sent == self.verified):
             return
         if self.flow == "escb":  # drain by ESC.B: answered at once, so a hung plotter shows
             self.escb_room(self.capacity)
@@ -884,7 +888,8 @@ class _HPGLSender(_Sender):
             self.room(3)
         if not self.checked:  # the first checkpoint: reading OS clears "initialized" (see locate_pen)
             self.ask(b"OS;", "OS (status)", self.patience(self.checked, self.sent))
-        expected = self.expected_position(self.sent)
+        verify = final or self.sent - self.verified >= VERIFY_EVERY
+        expected = self.expected_position(self.sent) if verify else None
         questions = [(b"OE;", "OE (output error)", 1)]
         if expected is not None:  # the same round trip tells where the pen is
             questions.append((b"OA;", "OA (actual pen position)", 3))
@@ -898,8 +903,11 @@ class _HPGLSender(_Sender):
         if expected is not None:
             x, y, down = position[0]
             if abs(x - expected[0]) > 1 or abs(y - expected[1]) > 1 or bool(down) != expected[2]:
+                self.checked = max(self.verified, 0)  # a resume draws again from the last check that agreed
                 raise self.misplaced((x, y, bool(down)), expected, "plotter units")
-        self.acked = self.checked = self.verified = self.sent
+        if verify:
+            self.verified = self.sent
+        self.acked = self.checked = self.sent
         self.tick()
 
     def lift(self, suspect: bool) -> str:
