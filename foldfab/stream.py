@@ -20,11 +20,12 @@ A *checkpoint* writes ``OE;`` and waits for the answer.  An output instruction i
 answered only when the plotter reaches it in its buffer, after the moves before it, so
 the round trip drains the buffer with every flow control, and the answer is the error
 register (cleared by reading): 0 means every command since the previous checkpoint was
-understood.  The same round trip asks ``OA`` (``x,y,pen``) once the program has placed
-the pen: a position more than a plotter unit from the interpreter's (or another pen
-state) is line noise that kept the program valid (a digit turned into another) or lost
-steps, and stops the job like a plotter error.  Checkpoints come at pauses, at the end
-(so a job is done only when its last position check agreed) and every :data:`CHECK_EVERY` bytes
+understood.  At pauses, at the end (so a job is done only when its last check agreed) and
+every :data:`VERIFY_EVERY` bytes the same round trip asks ``OA`` (``x,y,pen``), once the
+program has placed the pen: a position more than a plotter unit from the interpreter's (or
+another pen state) is line noise that kept the program valid (a digit turned into another)
+or lost steps, and stops the job like a plotter error; a resume draws again from the last
+check that agreed.  Checkpoints come at pauses, at the end and every :data:`CHECK_EVERY` bytes
 (at most a buffer), so an error is found within that window and the executed count is
 exact there; with ``escb`` the buffer is first drained by ``ESC.B`` polls, which are
 answered at once, so a hung plotter shows within the stall timeout. Between checkpoints
