@@ -396,13 +396,13 @@ class _Sender:
     def stalled(self, limit: float) -> bool:
         return time.monotonic() - self.alive > limit
 
-    def misplaced(self, actual: tuple, expected: tuple, unit: str) -> _Fault:
+    def misplaced(self, actual: tuple, expected: tuple, unit: str, offset: int) -> _Fault:
         """The fault of a position check that disagreed: the plotter drew something other
         than the program since the last check that agreed."""
         where = lambda p: ",".join(f"{v:g}" for v in p[:-1]) + (  # noqa: E731
             "" if p[-1] is None else " pen down" if p[-1] else " pen up")
         return _Fault(f"{self.device.name} is at {where(actual)}, expected {where(expected)} ({unit}) "
-                      f"after program byte {self.sent}: line noise or lost steps (check the cable and "
+                      f"after program byte {offset}: line noise or lost steps (check the cable and "
                       "the baud rate); what it drew since the last check that agreed may be wrong",
                       suspect=True)
 
@@ -480,15 +480,17 @@ class _HPGLSender(_Sender):
         self.check_every = min(self.size, CHECK_EVERY)
         self.checked = 0  # program bytes executed at the last checkpoint
         self.verified = -1  # program offset of the last position check that agreed
+        self.asked = -1  # program offset of the last position question (OA) written
         self.xoff = False
         self.credit = 0  # escb: bytes that fit by the last answer to ESC.B
         self.capacity = 0  # escb: the most free space ever reported (an empty buffer)
         self.replies: deque[str] = deque()
         self.unsure = False  # a question went unanswered: its answer may still come
         self.identities = 0  # OI questions not answered yet
-        self.marks: deque[tuple[int, int]] = deque()
-        """Inline markers not yet answered: (program offset, :attr:`buffered` when written);
-        offset -1 once an earlier marker failed."""
+        self.marks: deque[tuple[int, int, tuple | None]] = deque()
+        """Inline markers not yet answered: (program offset, :attr:`buffered` when written,
+        the expected pen position if ``OA;`` follows its ``OE;``); offset -1 once an earlier
+        marker failed."""
         self.marked = self.marked_strokes()
         """Ends (program offsets) of the strokes an inline marker follows."""
         self.buffered = 0  # bytes written into the plotter's buffer (all but ESC. instructions)
@@ -525,6 +527,23 @@ class _HPGLSender(_Sender):
                     f"{self.device.name}'s {self.size}-byte buffer takes HP-GL instructions of at "
                     f"most {limit}: write the program again for this profile (foldfab splits long PD lists)")
             start = end
+
+    def position_due(self) -> bool:
+        """:data:`VERIFY_EVERY` bytes since the last position question."""
+        return self.sent - self.asked >= VERIFY_EVERY
+
+    def check_position(self, answer: str, expected: tuple[float, float, bool], offset: int) -> None:
+        """Compare an ``OA`` answer with the position the program leaves after byte ``offset``."""
+        numbers = [n.strip() for n in answer.split(",")]
+        if len(numbers) < 3 or not all(re.fullmatch(r"-?\d+", n) for n in numbers[:3]):
+            raise _Fault(f"{self.device.name} answered OA (actual pen position) with {answer!r}, not 3 "
+                         "numbers (line noise, or other serial settings?)", suspect=True)
+        x, y, down = (int(n) for n in numbers[:3])
+        if abs(x - expected[0]) > 1 or abs(y - expected[1]) > 1 or bool(down) != expected[2]:
+            self.checked = max(self.verified, 0)  # a resume draws again from the last check that agreed
+            self.marks = deque((-1, b, e) for _, b, e in self.marks)
+            raise self.misplaced((x, y, bool(down)), expected, "plotter units", offset)
+        self.verified = offset
 
     def expected_position(self, offset: int) -> tuple[float, float, bool] | None:
         """Where the program leaves the pen after byte ``offset`` (plotter units, down), by
@@ -594,11 +613,14 @@ class _HPGLSender(_Sender):
                     break  # a command is never left half sent (a stop appends PU;)
                 rest = self.command_end(self.sent, stop) - self.sent
                 end = self.sent + min(self.room(rest), rest)
-            if self.sent in self.marked:
-                self.room(3)
-                self.write(b"OE;")
-                self.credit -= 3
-                self.marks.append((self.sent, self.buffered))
+            if self.sent in self.marked:  # a position check may ride on it when due (no drain)
+                expected = self.expected_position(self.sent) if self.position_due() else None
+                marker = b"OE;OA;" if expected is not None else b"OE;"
+                self.asked = self.sent if expected is not None else self.asked
+                self.room(len(marker))
+                self.write(marker)
+                self.credit -= len(marker)
+                self.marks.append((self.sent, self.buffered, expected))
             self.update_acked()
             self.tick()
 
@@ -607,7 +629,8 @@ class _HPGLSender(_Sender):
         if self.flow == "escb":
             return self.escb_room(need)
         if self.flow == "none":  # one buffer between checkpoints (markers are in it too)
-            free = lambda: self.checked + self.size - 3 - self.sent - 3 * len(self.marks)  # noqa: E731
+            free = lambda: (self.checked + self.size - 3 - self.sent  # noqa: E731
+                            - sum(3 if expected is None else 6 for _, _, expected in self.marks))
             self.receive(wait=False)
             self.absorb_marks()
             if free() < need:
@@ -763,16 +786,19 @@ class _HPGLSender(_Sender):
         """Take the answers of inline markers that have come: each says the bytes up to its
         marker are executed; one that is not 0 is an HP-GL error since the marker before."""
         self.replies.extend(self.lines())
-        while self.probes and any(not line.isdigit() for line in self.replies):
-            self.replies.remove(next(line for line in self.replies if not line.isdigit()))
+        while self.probes and any(not _NUMBERS.fullmatch(line) for line in self.replies):
+            self.replies.remove(next(line for line in self.replies if not _NUMBERS.fullmatch(line)))
             self.probes -= 1
             self.heard = time.monotonic()
-        while self.marks and self.replies:
+        while self.marks and len(self.replies) >= (1 if self.marks[0][2] is None else 2):
             self.heard = time.monotonic()
-            line, (offset, buffered) = self.replies.popleft(), self.marks.popleft()
+            line, (offset, buffered, expected) = self.replies.popleft(), self.marks.popleft()
+            position = self.replies.popleft() if expected is not None else ""
             error = int(line) if re.fullmatch(r"\d+", line) else None
             if offset < 0:  # after a failed marker: nothing later counts as executed
                 continue
+            if error == 0 and expected is not None and not self.stopping:
+                self.check_position(position, expected, offset)
             if error == 0:
                 self.acked = max(self.acked, offset)
                 self.checked = max(self.checked, offset)
@@ -781,7 +807,7 @@ class _HPGLSender(_Sender):
                 if not self.stopping:  # a stroke is done: tell at once (the queue saves it)
                     self.emit("progress")
                 continue
-            self.marks = deque((-1, b) for _, b in self.marks)
+            self.marks = deque((-1, b, e) for _, b, e in self.marks)
             self.plotter_error, self.failed_mark = True, error
             if self.stopping:  # already stopping: lift() counts the bytes since the last good marker as not done
                 continue
@@ -855,7 +881,7 @@ class _HPGLSender(_Sender):
         self.write(b"OI;")
         self.identities += 1
         while self.identities:
-            if not self.answer(b"OI;", "OI (identification)", timeout).isdigit():
+            if not _NUMBERS.fullmatch(self.answer(b"OI;", "OI (identification)", timeout)):
                 self.identities -= 1
         self.unsure = False
 
@@ -889,8 +915,9 @@ class _HPGLSender(_Sender):
             self.room(3)
         if not self.checked:  # the first checkpoint: reading OS clears "initialized" (see locate_pen)
             self.ask(b"OS;", "OS (status)", self.patience(self.checked, self.sent))
-        verify = final or self.sent - self.verified >= VERIFY_EVERY
+        verify = final or self.position_due()
         expected = self.expected_position(self.sent) if verify else None
+        self.asked = self.sent if verify else self.asked
         questions = [(b"OE;", "OE (output error)", 1)]
         if expected is not None:  # the same round trip tells where the pen is
             questions.append((b"OA;", "OA (actual pen position)", 3))
@@ -902,11 +929,8 @@ class _HPGLSender(_Sender):
                          f"{self.checked}..{self.sent} (line noise, or a command it does not take?)",
                          suspect=True)
         if expected is not None:
-            x, y, down = position[0]
-            if abs(x - expected[0]) > 1 or abs(y - expected[1]) > 1 or bool(down) != expected[2]:
-                self.checked = max(self.verified, 0)  # a resume draws again from the last check that agreed
-                raise self.misplaced((x, y, bool(down)), expected, "plotter units")
-        if verify:
+            self.check_position(",".join(map(str, position[0])), expected, self.sent)
+        elif verify:
             self.verified = self.sent
         self.acked = self.checked = self.sent
         self.tick()
@@ -957,6 +981,8 @@ class _Line:
     """GRBL executes it only once the planner is empty (G4, M0, M2, M3, M5, M30)."""
 
 
+_NUMBERS = re.compile(r"-?\d+(?:,-?\d+)*")
+"""HP-GL answers that are numbers (OE, OS, ESC.B, OA), unlike identifications (OI, ESC.A)."""
 _STATUS = re.compile(r"<([A-Za-z]+)(?::(\d+))?(.*)>")
 _FIELD = re.compile(r"\|(MPos|WPos|WCO):([-\d.]+),([-\d.]+),([-\d.]+)")
 
@@ -1226,7 +1252,7 @@ class _GrblSender(_Sender):
         if any(abs(a - e) > GRBL_POSITION_TOLERANCE for a, e in zip(actual[:axes], expected[:axes])):
             self.ceiling = min(self.ceiling, self.verified)
             self.acked = min(self.acked, self.verified)
-            raise self.misplaced((*actual[:axes], None), (*expected[:axes], None), "mm")
+            raise self.misplaced((*actual[:axes], None), (*expected[:axes], None), "mm", offset)
         self.verified = offset
 
     def hold_for(self, message: str, index: int) -> None:

@@ -359,6 +359,39 @@ def test_an_hpgl_job_is_done_once_its_last_position_check_agreed(name, xonxoff_d
     assert b"OE;OA;" in written[written.rindex(program.text[-10:].encode()):]
 
 
+def position_markers(written: bytes) -> list[int]:
+    """Program offsets after which the sender asked ``OE;OA;`` (checkpoints included)."""
+    offsets, program = [], 0
+    for part in re.split(rb"(OE;OA;|OE;|OS;|OA;|\x1b\.B)", written):
+        if part == b"OE;OA;":
+            offsets.append(program)
+        elif part not in (b"OE;", b"OS;", b"OA;", b"\x1b.B"):
+            program += len(part)
+    return offsets
+
+
+@pytest.mark.parametrize("name", ["hp7475a", "graphtec-ce6000", "roland-gx24", "xonxoff"])
+def test_inline_markers_carry_position_checks_mid_job(name, xonxoff_device):
+    """A motion-bound job (inline markers, no draining checkpoints): every 2048 bytes a
+    marker asks OA too; a stroke's last coordinate garbled before one stops the job there."""
+    device = device_for(name, xonxoff_device)
+    program = fabricated(str(ROOT / "jobs/vase-svg.toml"), xonxoff_device if name == "xonxoff" else name).program
+    clean = sim_port(device, baudrate=FAST_BAUD)
+    run(clean, program, device)
+    ends = set(JobProgress(program, device).ends)
+    mid_job = [offset for offset in position_markers(bytes(clean.written)) if offset in ends]
+    assert len(mid_job) >= len(program.text) // 2048 - 1
+    offset = mid_job[0]
+    pattern = program.text[offset - 8:offset - 1]  # ends with the stroke's last digit
+    wrong = str((int(pattern[-1]) + 5) % 10).encode()
+    port = Garble(open_port(SIM, device, baudrate=FAST_BAUD), pattern.encode(), wrong,
+                  program.text[:offset].count(pattern))
+    with pytest.raises(StreamStopped) as stop:
+        run(port, program, device)
+    assert f"after program byte {offset}: line noise or lost steps" in str(stop.value)
+    assert stop.value.acknowledged < offset and stop.value.plotter_error and stop.value.lifted
+
+
 # --- a naive sender loses data, foldfab does not ---------------------------------------------
 
 NAIVE_CASES = ["xonxoff", "xonxoff-by-foldfab", "rtscts", "escb", "grbl", "none"]
