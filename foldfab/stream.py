@@ -21,7 +21,8 @@ answered only when the plotter reaches it in its buffer, after the moves before 
 the round trip drains the buffer with every flow control, and the answer is the error
 register (cleared by reading): 0 means every command since the previous checkpoint was
 understood.  At pauses, at the end (so a job is done only when its last check agreed) and
-every :data:`VERIFY_EVERY` bytes the same round trip asks ``OA`` (``x,y,pen``), once the
+every :data:`VERIFY_EVERY` bytes (then on an inline marker, below, if one comes first: ``OE;OA;``)
+the same round trip asks ``OA`` (``x,y,pen``), once the
 program has placed the pen: a position more than a plotter unit from the interpreter's (or
 another pen state) is line noise that kept the program valid (a digit turned into another)
 or lost steps, and stops the job like a plotter error; a resume draws again from the last
@@ -107,8 +108,9 @@ CHECK_EVERY = 512
 HP-GL error is found within this many bytes, and a resume after it draws these bytes'
 strokes again."""
 VERIFY_EVERY = 4 * CHECK_EVERY
-"""HP-GL: bytes between position checks (``OA`` with a checkpoint's ``OE``) besides those at
-pauses and at the end: the answer's round trip costs link time (about 2% at every checkpoint)."""
+"""HP-GL: bytes between position checks (``OA`` with a checkpoint's or an inline marker's
+``OE``) besides those at pauses and at the end: at a checkpoint the answer's round trip costs
+link time (about 2% of the line rate if asked at every one)."""
 LEAD = 1.0
 """HP-GL with inline markers: seconds of work (by the estimate) the sender lets the plotter
 hold beyond the stroke it is drawing.  Markers tell the moment each stroke is done, so a
@@ -532,13 +534,10 @@ class _HPGLSender(_Sender):
         """:data:`VERIFY_EVERY` bytes since the last position question."""
         return self.sent - self.asked >= VERIFY_EVERY
 
-    def check_position(self, answer: str, expected: tuple[float, float, bool], offset: int) -> None:
-        """Compare an ``OA`` answer with the position the program leaves after byte ``offset``."""
-        numbers = [n.strip() for n in answer.split(",")]
-        if len(numbers) < 3 or not all(re.fullmatch(r"-?\d+", n) for n in numbers[:3]):
-            raise _Fault(f"{self.device.name} answered OA (actual pen position) with {answer!r}, not 3 "
-                         "numbers (line noise, or other serial settings?)", suspect=True)
-        x, y, down = (int(n) for n in numbers[:3])
+    def check_position(self, answer: list[int], expected: tuple[float, float, bool], offset: int) -> None:
+        """Compare an ``OA`` answer (x, y, pen) with the position the program leaves after byte
+        ``offset``."""
+        x, y, down = answer
         if abs(x - expected[0]) > 1 or abs(y - expected[1]) > 1 or bool(down) != expected[2]:
             self.checked = max(self.verified, 0)  # a resume draws again from the last check that agreed
             self.marks = deque((-1, b, e) for _, b, e in self.marks)
@@ -797,8 +796,9 @@ class _HPGLSender(_Sender):
             error = int(line) if re.fullmatch(r"\d+", line) else None
             if offset < 0:  # after a failed marker: nothing later counts as executed
                 continue
-            if error == 0 and expected is not None and not self.stopping:
-                self.check_position(position, expected, offset)
+            if error == 0 and expected is not None and not self.stopping:  # garbled: the pairing is lost
+                self.check_position(self.numbers(position, "OA (actual pen position)", 3, suspect=True),
+                                    expected, offset)
             if error == 0:
                 self.acked = max(self.acked, offset)
                 self.checked = max(self.checked, offset)
@@ -846,15 +846,16 @@ class _HPGLSender(_Sender):
         self.unsure = True  # until its answers are read: a stop may abandon the questions
         lines = [self.answer(command, what, timeout) for command, what, _ in questions]
         self.unsure = False
-        answers = []
-        for line, (_, what, count) in zip(lines, questions):
-            numbers = [n.strip() for n in line.split(",")][:count]
-            if len(numbers) < count or not all(re.fullmatch(r"-?\d+", n) for n in numbers):
-                raise _Fault(f"{self.device.name} answered {what} with {line!r}, not "
-                             f"{'a number' if count == 1 else f'{count} numbers'} "
-                             "(line noise, or other serial settings?)")
-            answers.append([int(n) for n in numbers])
-        return answers
+        return [self.numbers(line, what, count) for line, (_, what, count) in zip(lines, questions)]
+
+    def numbers(self, line: str, what: str, count: int, suspect: bool = False) -> list[int]:
+        """The first ``count`` integers of the answer ``line`` to ``what``, else a fault."""
+        numbers = [n.strip() for n in line.split(",")][:count]
+        if len(numbers) < count or not all(re.fullmatch(r"-?\d+", n) for n in numbers):
+            raise _Fault(f"{self.device.name} answered {what} with {line!r}, not "
+                         f"{'a number' if count == 1 else f'{count} numbers'} "
+                         "(line noise, or other serial settings?)", suspect)
+        return [int(n) for n in numbers]
 
     def answer(self, command: bytes, what: str, timeout: float) -> str:
         """The next reply line; a question without one makes the replies unsure."""
@@ -929,7 +930,7 @@ class _HPGLSender(_Sender):
                          f"{self.checked}..{self.sent} (line noise, or a command it does not take?)",
                          suspect=True)
         if expected is not None:
-            self.check_position(",".join(map(str, position[0])), expected, self.sent)
+            self.check_position(position[0], expected, self.sent)
         elif verify:
             self.verified = self.sent
         self.acked = self.checked = self.sent
