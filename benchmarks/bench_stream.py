@@ -7,7 +7,9 @@ Run by hand:  python benchmarks/bench_stream.py   (about three minutes)
    simulator, so the host's own turnaround counts.  foldfab's sender side by side with
    send-and-wait (one command, wait for its reply: ``ok`` for GRBL, the answer to an
    ``OE;`` sent after each HP-GL command).  Throughput = program bytes / plot time,
-   as a share of the line rate (baud / 10 for 8N1).
+   as a share of the line rate (baud / 10 for 8N1).  foldfab's figure includes its checks:
+   HP-GL ``OE`` checkpoints with an ``OA`` position check every 2048 bytes and at the end,
+   GRBL's status position at the end.
 2. Motion-bound: the real profiles, ``time=instant``: the plotter's idle time while more
    of the job was still to come (``starved``) as a share of its plot time.
 3. Host CPU while the plotter works: ``foldfab sim NAME --pty`` at real speed in another

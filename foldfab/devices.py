@@ -118,6 +118,15 @@ class BufferSettings:
     size: int
     flow_control: str
 
+    @property
+    def instruction_limit(self) -> int:
+        """HP-GL: bytes an instruction may have (the writer splits longer ``PD`` lists).  A
+        sender waits for room for a whole instruction, and with no handshake it cannot send
+        more than a buffer between two checks, so an instruction must fit with room to spare:
+        half the buffer (the plotter reads the next while drawing one), at least 24 bytes
+        (a coordinate pair) where the buffer holds that and a 3-byte ``OE;`` marker."""
+        return max(self.size // 2, min(24, self.size - 3))
+
 
 @dataclass(frozen=True)
 class Motion:

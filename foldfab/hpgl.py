@@ -1,7 +1,10 @@
 """HPGL writer for HP pen plotters and Graphtec / Roland cutters in HP-GL mode.
 
 Output is compact and deterministic: ``IN;`` first; per sweep ``SP``/``FS``/``VS`` only
-when they change; each line as ``PU x,y;PD x,y,x,y,...;`` in integer plotter units;
+when they change; each line as ``PU x,y;PD x,y,x,y,...;`` in integer plotter units,
+the ``PD`` list split into several ``PD`` instructions where it would be longer than the
+device's buffer allows (:attr:`~foldfab.devices.BufferSettings.instruction_limit`: a
+sender can only ever send whole instructions, and one that never fits deadlocks it);
 at a pause and at the end the pen is lifted, moved to the park position and put
 away (``PU x,y;SP0;``).  HPGL has no pause command: pauses are byte offsets in
 :attr:`Program.pauses` (see :mod:`foldfab.program`).  Speeds are sent as ``VS`` in
@@ -16,6 +19,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from foldfab.errors import FoldfabError
 from foldfab.program import Program, ProgramBuilder, Stop, fmt_number, sweeps
 
 if TYPE_CHECKING:
@@ -33,6 +37,7 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
     out = ProgramBuilder("hpgl", device)
     park_x, park_y = device.park_units
     park = f"PU{park_x},{park_y};SP0;"
+    limit = device.buffer.instruction_limit
     out.write("IN;")
     pen = force = speed = None
     for item in items:
@@ -58,7 +63,32 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
         for line in item.lines:
             end = start + 2 * len(line)
             rest = ",".join(map(str, units[start + 2:end]))
+            if len(rest) + 3 > limit:
+                rest = _split_pd(units[start + 2:end], limit, device)
             out.write(f"PU{units[start]},{units[start + 1]};PD{rest};")
             start = end
     out.write(park)
     return out.build()
+
+
+def _split_pd(units: list[int], limit: int, device: DeviceProfile) -> str:
+    """The coordinates ``units`` (x, y, x, y, ...) as ``PD`` parameter lists joined by ``;PD``,
+    each instruction at most ``limit`` bytes (the pairs are independent, so the strokes
+    drawn are the same)."""
+    pieces: list[str] = []
+    used = 0  # bytes of the instruction being filled, "PD" and commas included
+    for pair in map("{},{}".format, units[::2], units[1::2]):
+        if used and used + 1 + len(pair) + 1 > limit:
+            pieces.append(";PD")
+            used = 0
+        if used:
+            pieces.append(",")
+        elif len(pair) + 3 > limit:
+            need = len(pair) + 3
+            raise FoldfabError(
+                f"{device.name}: a {device.buffer.size}-byte buffer ([buffer] size) holds HP-GL "
+                f"instructions of at most {limit} bytes, too few for PD{pair}; ({need} bytes): "
+                f"set [buffer] size to at least {need + 3 if need <= 24 else 2 * need}")
+        pieces.append(pair)
+        used += len(pair) + (1 if used else 2)
+    return "".join(pieces)

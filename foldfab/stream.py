@@ -20,7 +20,13 @@ A *checkpoint* writes ``OE;`` and waits for the answer.  An output instruction i
 answered only when the plotter reaches it in its buffer, after the moves before it, so
 the round trip drains the buffer with every flow control, and the answer is the error
 register (cleared by reading): 0 means every command since the previous checkpoint was
-understood.  Checkpoints come at pauses, at the end and every :data:`CHECK_EVERY` bytes
+understood.  At pauses, at the end (so a job is done only when its last check agreed) and
+every :data:`VERIFY_EVERY` bytes (then on an inline marker, below, if one comes first: ``OE;OA;``)
+the same round trip asks ``OA`` (``x,y,pen``), once the
+program has placed the pen: a position more than a plotter unit from the interpreter's (or
+another pen state) is line noise that kept the program valid (a digit turned into another)
+or lost steps, and stops the job like a plotter error; a resume draws again from the last
+check that agreed.  Checkpoints come at pauses, at the end and every :data:`CHECK_EVERY` bytes
 (at most a buffer), so an error is found within that window and the executed count is
 exact there; with ``escb`` the buffer is first drained by ``ESC.B`` polls, which are
 answered at once, so a hung plotter shows within the stall timeout. Between checkpoints
@@ -50,7 +56,10 @@ counting (at most 127 bytes unacknowledged, ``\\n`` endings as in the program). 
 polls the status at most 5 times a second, for progress and to know when motion has
 really finished (``Idle`` in a report asked after the last ``ok``).  ``error:N`` and
 ``ALARM:N`` stop the job, with the program line and the meaning of N.  ``M0`` holds the
-machine: once it reports ``Hold``, the operator is asked and ``~`` resumes.  GRBL says
+machine: once it reports ``Hold``, the operator is asked and ``~`` resumes.  At such a hold
+and at the end, at rest, the status report's position (``MPos`` less ``WCO``, or ``WPos``)
+must be the interpreter's within :data:`GRBL_POSITION_TOLERANCE`, else the job stops as
+after an error, with the last check that agreed as its resume point.  GRBL says
 ``ok`` when a line enters its planner, so the executed count is conservative: lines
 before a dwell or ``M`` synchronisation, or before the last :data:`PLANNER_BLOCKS`
 motion lines; after a stop it is refined by the position where the machine held.
@@ -98,10 +107,17 @@ CHECK_EVERY = 512
 """HP-GL: bytes between checkpoints (at most one buffer): without inline markers an
 HP-GL error is found within this many bytes, and a resume after it draws these bytes'
 strokes again."""
+VERIFY_EVERY = 4 * CHECK_EVERY
+"""HP-GL: bytes between position checks (``OA`` with a checkpoint's or an inline marker's
+``OE``) besides those at pauses and at the end: at a checkpoint the answer's round trip costs
+link time (about 2% of the line rate if asked at every one)."""
 LEAD = 1.0
 """HP-GL with inline markers: seconds of work (by the estimate) the sender lets the plotter
 hold beyond the stroke it is drawing.  Markers tell the moment each stroke is done, so a
 second keeps it busy, and a stop (Ctrl-C, a host that dies) leaves little in its buffer."""
+GRBL_POSITION_TOLERANCE = 0.02
+"""mm a GRBL status position may differ from the program's: a step (80 steps/mm) and the
+report's rounding."""
 BANNER_WAIT = 2.5
 """Seconds to wait for the GRBL banner (an Arduino boots in about 2 s), before and after
 the soft reset."""
@@ -395,6 +411,16 @@ class _Sender:
     def stalled(self, limit: float) -> bool:
         return time.monotonic() - self.alive > limit
 
+    def misplaced(self, actual: tuple, expected: tuple, unit: str, offset: int) -> _Fault:
+        """The fault of a position check that disagreed: the plotter drew something other
+        than the program since the last check that agreed."""
+        where = lambda p: ",".join(f"{v:g}" for v in p[:-1]) + (  # noqa: E731
+            "" if p[-1] is None else " pen down" if p[-1] else " pen up")
+        return _Fault(f"{self.device.name} is at {where(actual)}, expected {where(expected)} ({unit}) "
+                      f"after program byte {offset}: line noise or lost steps (check the cable and "
+                      "the baud rate); what it drew since the last check that agreed may be wrong",
+                      suspect=True)
+
     def check_cancel(self) -> None:
         if self.cancel.is_set() and not self.stopping:
             raise _Cancelled("stopped on request")
@@ -468,15 +494,18 @@ class _HPGLSender(_Sender):
         self.cts_line = True  # the port can report CTS
         self.check_every = min(self.size, CHECK_EVERY)
         self.checked = 0  # program bytes executed at the last checkpoint
+        self.verified = -1  # program offset of the last position check that agreed
+        self.asked = -1  # program offset of the last position question (OA) written
         self.xoff = False
         self.credit = 0  # escb: bytes that fit by the last answer to ESC.B
         self.capacity = 0  # escb: the most free space ever reported (an empty buffer)
         self.replies: deque[str] = deque()
         self.unsure = False  # a question went unanswered: its answer may still come
         self.identities = 0  # OI questions not answered yet
-        self.marks: deque[tuple[int, int]] = deque()
-        """Inline markers not yet answered: (program offset, :attr:`buffered` when written);
-        offset -1 once an earlier marker failed."""
+        self.marks: deque[tuple[int, int, tuple | None]] = deque()
+        """Inline markers not yet answered: (program offset, :attr:`buffered` when written,
+        the expected pen position if ``OA;`` follows its ``OE;``); offset -1 once an earlier
+        marker failed."""
         self.marked = self.marked_strokes()
         """Ends (program offsets) of the strokes an inline marker follows."""
         self.buffered = 0  # bytes written into the plotter's buffer (all but ESC. instructions)
@@ -488,6 +517,58 @@ class _HPGLSender(_Sender):
         self.heard = 0.0  # when the plotter last answered a marker or a probe
         self.failed_mark: int | None = None  # what a marker answered instead of 0 (None: garbled)
         self.ends = [i + 1 for i, byte in enumerate(self.data) if byte == ord(";")]
+        self.check_instructions()
+        from foldfab.interpret import pen_states
+
+        first_move = re.search(rb"P[UDA][-+\d][^;]*;", self.data)
+        self.known_from = first_move.end() if first_move else len(self.data) + 1
+        """Program offset from which the interpreter knows the pen's position."""
+        self.states = pen_states(self.program.text, "hpgl", self.device)
+        self.state: tuple[int, float, float, bool] | None = None  # the last step read from states
+
+    def check_instructions(self) -> None:
+        """Refuse a program with an instruction longer than the buffer can take where the
+        sender needs room for whole instructions: it would wait for it forever (``escb``),
+        or check the plotter in its middle (``none``).  With ``xonxoff`` and ``rtscts`` the
+        plotter's handshake paces the pieces of a long one."""
+        if self.flow not in ("escb", "none"):
+            return
+        limit = self.size - 3  # room for the instruction and an OE; marker after it
+        start = 0
+        for end in self.ends:
+            if end - start > limit:
+                raise FoldfabError(
+                    f"program instruction at byte {start} is {end - start} bytes long; "
+                    f"{self.device.name}'s {self.size}-byte buffer takes HP-GL instructions of at "
+                    f"most {limit}: write the program again for this profile (foldfab splits long PD lists)")
+            start = end
+
+    def position_due(self) -> bool:
+        """:data:`VERIFY_EVERY` bytes since the last position question."""
+        return self.sent - self.asked >= VERIFY_EVERY
+
+    def check_position(self, answer: list[int], expected: tuple[float, float, bool], offset: int) -> None:
+        """Compare an ``OA`` answer (x, y, pen) with the position the program leaves after byte
+        ``offset``."""
+        x, y, down = answer
+        if abs(x - expected[0]) > 1 or abs(y - expected[1]) > 1 or bool(down) != expected[2]:
+            self.checked = max(self.verified, 0)  # a resume draws again from the last check that agreed
+            self.marks = deque((-1, b, e) for _, b, e in self.marks)
+            raise self.misplaced((x, y, bool(down)), expected, "plotter units", offset)
+        self.verified = offset
+
+    def expected_position(self, offset: int) -> tuple[float, float, bool] | None:
+        """Where the program leaves the pen after byte ``offset`` (plotter units, down), by
+        the interpreter; None before its first absolute move (the pen is where the last job
+        left it).  Offsets must not decrease from one call to the next."""
+        if offset < self.known_from:
+            return None
+        while self.state is None or self.state[0] < offset:
+            end, machine = next(self.states, (len(self.data), None))
+            if machine is None:
+                break
+            self.state = (end, machine.position[0], machine.position[1], machine.stroke is not None)
+        return self.state[1:] if self.state is not None and self.state[0] == offset else None
 
     def send_program(self) -> None:
         pauses = sorted(self.program.pauses, key=lambda p: p.offset)
@@ -496,10 +577,10 @@ class _HPGLSender(_Sender):
         self.checkpoint()
         for mark in pauses:
             self.send_until(mark.offset)
-            self.checkpoint()
+            self.checkpoint(final=True)
             self.ask_operator(mark.message)
         self.send_until(len(self.data))
-        self.checkpoint()
+        self.checkpoint(final=True)
 
     # -- sending --------------------------------------------------------------------------
     def command_end(self, offset: int, limit: int) -> int:
@@ -544,11 +625,14 @@ class _HPGLSender(_Sender):
                     break  # a command is never left half sent (a stop appends PU;)
                 rest = self.command_end(self.sent, stop) - self.sent
                 end = self.sent + min(self.room(rest), rest)
-            if self.sent in self.marked:
-                self.room(3)
-                self.write(b"OE;")
-                self.credit -= 3
-                self.marks.append((self.sent, self.buffered))
+            if self.sent in self.marked:  # a position check may ride on it when due (no drain)
+                expected = self.expected_position(self.sent) if self.position_due() else None
+                marker = b"OE;OA;" if expected is not None else b"OE;"
+                self.asked = self.sent if expected is not None else self.asked
+                self.room(len(marker))
+                self.write(marker)
+                self.credit -= len(marker)
+                self.marks.append((self.sent, self.buffered, expected))
             self.update_acked()
             self.tick()
 
@@ -557,7 +641,8 @@ class _HPGLSender(_Sender):
         if self.flow == "escb":
             return self.escb_room(need)
         if self.flow == "none":  # one buffer between checkpoints (markers are in it too)
-            free = lambda: self.checked + self.size - 3 - self.sent - 3 * len(self.marks)  # noqa: E731
+            free = lambda: (self.checked + self.size - 3 - self.sent  # noqa: E731
+                            - sum(3 if expected is None else 6 for _, _, expected in self.marks))
             self.receive(wait=False)
             self.absorb_marks()
             if free() < need:
@@ -713,16 +798,20 @@ class _HPGLSender(_Sender):
         """Take the answers of inline markers that have come: each says the bytes up to its
         marker are executed; one that is not 0 is an HP-GL error since the marker before."""
         self.replies.extend(self.lines())
-        while self.probes and any(not line.isdigit() for line in self.replies):
-            self.replies.remove(next(line for line in self.replies if not line.isdigit()))
+        while self.probes and any(not _NUMBERS.fullmatch(line) for line in self.replies):
+            self.replies.remove(next(line for line in self.replies if not _NUMBERS.fullmatch(line)))
             self.probes -= 1
             self.heard = time.monotonic()
-        while self.marks and self.replies:
+        while self.marks and len(self.replies) >= (1 if self.marks[0][2] is None else 2):
             self.heard = time.monotonic()
-            line, (offset, buffered) = self.replies.popleft(), self.marks.popleft()
+            line, (offset, buffered, expected) = self.replies.popleft(), self.marks.popleft()
+            position = self.replies.popleft() if expected is not None else ""
             error = int(line) if re.fullmatch(r"\d+", line) else None
             if offset < 0:  # after a failed marker: nothing later counts as executed
                 continue
+            if error == 0 and expected is not None and not self.stopping:  # garbled: the pairing is lost
+                self.check_position(self.numbers(position, "OA (actual pen position)", 3, suspect=True),
+                                    expected, offset)
             if error == 0:
                 self.acked = max(self.acked, offset)
                 self.checked = max(self.checked, offset)
@@ -731,7 +820,7 @@ class _HPGLSender(_Sender):
                 if not self.stopping:  # a stroke is done: tell at once (the queue saves it)
                     self.emit("progress")
                 continue
-            self.marks = deque((-1, b) for _, b in self.marks)
+            self.marks = deque((-1, b, e) for _, b, e in self.marks)
             self.plotter_error, self.failed_mark = True, error
             if self.stopping:  # already stopping: lift() counts the bytes since the last good marker as not done
                 continue
@@ -759,17 +848,26 @@ class _HPGLSender(_Sender):
 
     def ask(self, command: bytes, what: str, timeout: float, count: int = 1) -> list[int]:
         """Send an output instruction; return the first ``count`` integers of its answer."""
+        return self.ask_all([(command, what, count)], timeout)[0]
+
+    def ask_all(self, questions: list[tuple[bytes, str, int]], timeout: float) -> list[list[int]]:
+        """Send output instructions in one write (one round trip); per (command, what,
+        count): the first ``count`` integers of its answer."""
         if self.unsure:
             self.resync(timeout)
-        self.write(command)
-        self.unsure = True  # until its answer is read: a stop may abandon the question
-        line = self.answer(command, what, timeout)
+        self.write(b"".join(command for command, _, _ in questions))
+        self.unsure = True  # until its answers are read: a stop may abandon the questions
+        lines = [self.answer(command, what, timeout) for command, what, _ in questions]
         self.unsure = False
+        return [self.numbers(line, what, count) for line, (_, what, count) in zip(lines, questions)]
+
+    def numbers(self, line: str, what: str, count: int, suspect: bool = False) -> list[int]:
+        """The first ``count`` integers of the answer ``line`` to ``what``, else a fault."""
         numbers = [n.strip() for n in line.split(",")][:count]
         if len(numbers) < count or not all(re.fullmatch(r"-?\d+", n) for n in numbers):
             raise _Fault(f"{self.device.name} answered {what} with {line!r}, not "
                          f"{'a number' if count == 1 else f'{count} numbers'} "
-                         "(line noise, or other serial settings?)")
+                         "(line noise, or other serial settings?)", suspect)
         return [int(n) for n in numbers]
 
     def answer(self, command: bytes, what: str, timeout: float) -> str:
@@ -797,7 +895,7 @@ class _HPGLSender(_Sender):
         self.write(b"OI;")
         self.identities += 1
         while self.identities:
-            if not self.answer(b"OI;", "OI (identification)", timeout).isdigit():
+            if not _NUMBERS.fullmatch(self.answer(b"OI;", "OI (identification)", timeout)):
                 self.identities -= 1
         self.unsure = False
 
@@ -820,9 +918,10 @@ class _HPGLSender(_Sender):
         finally:
             self.port.timeout = timeout
 
-    def checkpoint(self) -> None:
-        """Wait until the plotter has executed everything sent and check its error register."""
-        if self.sent == self.checked and self.sent:
+    def checkpoint(self, final: bool = False) -> None:
+        """Wait until the plotter has executed everything sent and check its error register,
+        and its position at a pause, at the end (``final``) and every :data:`VERIFY_EVERY` bytes."""
+        if self.sent == self.checked and self.sent and (not final or self.sent == self.verified):
             return
         if self.flow == "escb":  # drain by ESC.B: answered at once, so a hung plotter shows
             self.escb_room(self.capacity)
@@ -830,13 +929,23 @@ class _HPGLSender(_Sender):
             self.room(3)
         if not self.checked:  # the first checkpoint: reading OS clears "initialized" (see locate_pen)
             self.ask(b"OS;", "OS (status)", self.patience(self.checked, self.sent))
-        error = self.ask(b"OE;", "OE (output error)", self.patience(self.checked, self.sent))[0]
+        verify = final or self.position_due()
+        expected = self.expected_position(self.sent) if verify else None
+        self.asked = self.sent if verify else self.asked
+        questions = [(b"OE;", "OE (output error)", 1)]
+        if expected is not None:  # the same round trip tells where the pen is
+            questions.append((b"OA;", "OA (actual pen position)", 3))
+        (error,), *position = self.ask_all(questions, self.patience(self.checked, self.sent))
         self.credit = self.capacity  # the buffer is empty now
         if error:
             meaning = HPGL_ERRORS.get(error, "unknown error")
             raise _Fault(f"{self.device.name} reports HP-GL error {error} ({meaning}) in program bytes "
                          f"{self.checked}..{self.sent} (line noise, or a command it does not take?)",
                          suspect=True)
+        if expected is not None:
+            self.check_position(position[0], expected, self.sent)
+        elif verify:
+            self.verified = self.sent
         self.acked = self.checked = self.sent
         self.tick()
 
@@ -886,6 +995,8 @@ class _Line:
     """GRBL executes it only once the planner is empty (G4, M0, M2, M3, M5, M30)."""
 
 
+_NUMBERS = re.compile(r"-?\d+(?:,-?\d+)*")
+"""HP-GL answers that are numbers (OE, OS, ESC.B, OA), unlike identifications (OI, ESC.A)."""
 _STATUS = re.compile(r"<([A-Za-z]+)(?::(\d+))?(.*)>")
 _FIELD = re.compile(r"\|(MPos|WPos|WCO):([-\d.]+),([-\d.]+),([-\d.]+)")
 
@@ -913,6 +1024,8 @@ class _GrblSender(_Sender):
         self.pause_ends = {p.offset: p for p in self.program.pauses}
         self.moves = [i for i, line in enumerate(self.lines_) if line.motion]
         self.syncs = [i for i, line in enumerate(self.lines_) if line.sync]
+        self.verified = 0  # program offset of the last position check that agreed
+        self.expecting: tuple[object, int] | None = None  # (interpreter, lines it has read)
 
     def split(self) -> list[_Line]:
         """The program's lines with their byte ranges and what GRBL does with them."""
@@ -1132,6 +1245,29 @@ class _GrblSender(_Sender):
             if pause is not None:
                 self.hold_for(pause.message, index - 1)
         self.wait(self.idle, "the end of motion", self.patience(self.acked, len(self.data)))
+        self.check_position(len(self.lines_) - 1, len(self.data))
+
+    def check_position(self, index: int, offset: int) -> None:
+        """At rest after program line ``index``: the status report's position must be the
+        program's (by the interpreter), else a fault; ``offset`` is then verified."""
+        from foldfab.interpret import GcodeMachine, read_gcode_line
+
+        if not self.lines_ or self.machine_position is None:
+            return
+        if self.expecting is None:
+            self.expecting = (GcodeMachine(self.device, self.device.frame(self.device.sheet), None), 0)
+        machine, read = self.expecting
+        for line in self.lines_[read:index + 1]:
+            machine.apply(read_gcode_line(line.data.decode("ascii")[:-1], line.start), line.end)
+        self.expecting = (machine, max(read, index + 1))
+        expected = (*machine.position, machine.z)
+        actual = self.work_position()
+        axes = 2 if machine.servo else 3  # a servo pen's state is not in the position
+        if any(abs(a - e) > GRBL_POSITION_TOLERANCE for a, e in zip(actual[:axes], expected[:axes])):
+            self.ceiling = min(self.ceiling, self.verified)
+            self.acked = min(self.acked, self.verified)
+            raise self.misplaced((*actual[:axes], None), (*expected[:axes], None), "mm", offset)
+        self.verified = offset
 
     def hold_for(self, message: str, index: int) -> None:
         """M0 was sent: once GRBL holds there (motion done), ask the operator, then ``~``."""
@@ -1139,6 +1275,7 @@ class _GrblSender(_Sender):
                   self.report[0] == "Hold" and self.substate in (None, "0") and
                   self.report[1] == self.answered,
                   "the M0 pause", self.patience(self.acked, self.sent))
+        self.check_position(index, self.lines_[index].start)
         self.acked = max(self.acked, self.lines_[index].start)
         self.ask_operator(message)
         self.write(b"~")

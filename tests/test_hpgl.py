@@ -5,9 +5,11 @@ from __future__ import annotations
 import copy
 import shutil
 import subprocess
+from dataclasses import replace
 
 import pytest
 from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_interpret import assert_round_trip, make_document, random_plans, sample_plan
 
 from foldfab.devices import load_device
@@ -74,6 +76,38 @@ def test_compact_encoding(name):
     assert sum(c.name == "PU" for c in cmds) == lines + 2  # + park at the pause and the end
     park = [round(v * device.units_per_mm) for v in device.motion.park]
     assert [c.name for c in cmds[-2:]] == ["PU", "SP"] and list(cmds[-2].params) == park
+
+
+def longest_instruction(text: str) -> int:
+    return max(len(instruction) + 1 for instruction in text.split(";")[:-1])
+
+
+def with_buffer(device, size: int):
+    return replace(device, buffer=replace(device.buffer, size=size))
+
+
+@pytest.mark.parametrize("name", HPGL_DEVICES)
+def test_pd_lists_are_split_to_fit_small_buffers(name):
+    """Buffers from 32 bytes up: no instruction longer than the buffer allows, same strokes."""
+    device = load_device(name)
+
+    @settings(max_examples=30, deadline=None)
+    @given(random_plans(device), st.integers(32, 400))
+    def check(plan, size):
+        small = with_buffer(device, size)
+        program = write_hpgl(plan, small)
+        assert longest_instruction(program.text) <= max(size // 2, min(24, size - 3))
+        assert_round_trip(plan, small, program)
+
+    check()
+
+
+def test_a_buffer_too_small_for_one_coordinate_pair_is_refused():
+    device = with_buffer(load_device("hp7475a"), 12)
+    doc = make_document({1: [[100 + 100j, 150 + 100j, 150 + 150j]]})
+    plan = PlotPlan(doc, [Pass(1, "valley", device.tool_for("valley"))], device.sheet)
+    with pytest.raises(FoldfabError, match=r"12-byte buffer \(\[buffer\] size\).*at least"):
+        write_hpgl(plan, device)
 
 
 def test_dialects_encode_force_and_speed():

@@ -22,12 +22,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from test_interpret import make_document, sample_plan
 
 from foldfab.design import load_design
-from foldfab.devices import load_device
+from foldfab.devices import BufferSettings, load_device
 from foldfab.fabrication import fabricate, parse_fabrication
 from foldfab.interpret import interpret
 from foldfab.progress import JobProgress
+from foldfab.errors import FoldfabError
+from foldfab.hpgl import write_hpgl
+from foldfab.plan import Pass, PlotPlan
+from foldfab.program import write_program
 from foldfab.stream import GRBL_RX_BUFFER, StreamStopped, stream
 from foldfab.transport import open_port
 
@@ -157,13 +164,13 @@ def test_every_job_every_device_draws_the_program(job, name, xonxoff_device):
 
 def marker_offsets(written: bytes, program: bytes) -> list[int]:
     """Program offsets after which the sender wrote an inline ``OE;`` (checkpoints included),
-    checking that the rest of what it wrote is the program, a setup ``OS;`` and device-control
-    questions (``ESC.B``)."""
+    checking that the rest of what it wrote is the program, a setup ``OS;``, position questions
+    (``OA;``) and device-control questions (``ESC.B``)."""
     offsets, rest = [], bytearray()
-    for part in re.split(rb"(OE;|OS;|\x1b\.B)", written):
+    for part in re.split(rb"(OE;|OS;|OA;|\x1b\.B)", written):
         if part == b"OE;":
             offsets.append(len(rest))
-        elif part not in (b"OS;", b"\x1b.B"):
+        elif part not in (b"OS;", b"OA;", b"\x1b.B"):
             rest += part
     assert bytes(rest) == program
     return offsets
@@ -238,6 +245,152 @@ def test_two_sided_job_pauses_for_the_flip_and_is_answered(name, xonxoff_device)
     assert stop.value.lifted and not stop.value.cancelled
     assert len(port.simulator.strokes) == before
     assert JobProgress(fab.program, device).strokes_done(stop.value.acknowledged) == before
+
+
+# --- instructions longer than the buffer ------------------------------------------------------
+
+
+def small_buffer_device(flow: str, size: int):
+    """The HP 7475A with a ``size``-byte buffer and the handshake ``flow``."""
+    device = load_device("hp7475a")
+    serial = replace(device.serial, xonxoff=flow == "xonxoff", rtscts=flow == "rtscts")
+    return replace(device, serial=serial, buffer=BufferSettings(size, flow))
+
+
+def long_lines_plan(device) -> PlotPlan:
+    """Two lines of 30 and 12 points: PD lists of hundreds of bytes on one sheet."""
+    zigzag = [complex(20 + 6 * k, 40 + 30 * (k % 2)) for k in range(30)]
+    spiral = [complex(150 + 40 * np.cos(k), 120 + 40 * np.sin(k)) for k in range(12)]
+    return PlotPlan(make_document({1: [zigzag, spiral]}), [Pass(1, "valley", device.tool_for("valley"))],
+                    device.sheet)
+
+
+@settings(max_examples=24, deadline=None)
+@given(st.sampled_from(["escb", "xonxoff", "rtscts", "none"]), st.integers(32, 300))
+def test_lines_longer_than_the_buffer_stream_with_every_flow_control(flow, size):
+    """A 300-byte PD on a 32-byte buffer: written in pieces that fit, drawn exactly, no stall."""
+    device = small_buffer_device(flow, size)
+    program = write_hpgl(long_lines_plan(device), device)
+    port = sim_port(device, f"buffer={size}", baudrate=FAST_BAUD)
+    run(port, program, device, stall_timeout=3.0)
+    assert port.simulator.stats.bytes_lost == 0 and not port.simulator.stats.errors
+    assert same_strokes(port.simulator.strokes, strokes_of(program, device))
+    assert len(strokes_of(program, device)) == 2
+
+
+def test_a_program_with_an_instruction_longer_than_the_buffer_allows_is_refused_before_sending():
+    """A program written for a larger buffer would deadlock the sender: a one-line error instead."""
+    big, small = small_buffer_device("escb", 1024), small_buffer_device("escb", 64)
+    program = write_hpgl(long_lines_plan(big), big)
+    port = sim_port(small, "buffer=64", baudrate=FAST_BAUD)
+    with pytest.raises(FoldfabError, match=r"program instruction at byte \d+ is \d+ bytes long; "
+                                           r"hp7475a's 64-byte buffer takes HP-GL instructions of at most 61"):
+        run(port, program, small)
+    assert not port.written
+
+
+# --- line noise that keeps the program valid: position checks ------------------------------------
+
+
+class Garble(Spy):
+    """Line noise that keeps the program valid: the last byte of the ``occurrence``-th
+    ``pattern`` the host writes arrives as ``replacement``."""
+
+    def __init__(self, port, pattern: bytes, replacement: bytes, occurrence: int):
+        super().__init__(port, grbl=port.simulator.protocol == "gcode")
+        object.__setattr__(self, "_garble", [pattern, replacement, occurrence, b""])
+
+    def write(self, data):
+        pattern, replacement, occurrence, tail = self._garble
+        out = bytearray()
+        for byte in data:
+            tail = (tail + bytes([byte]))[-len(pattern):]
+            if tail == pattern:
+                occurrence -= 1
+                if occurrence == 0:
+                    byte = replacement[0]
+            out.append(byte)
+        self._garble[2:] = [occurrence, tail]
+        return super().write(bytes(out))
+
+
+def garbled_park(name: str, occurrence: int, xonxoff_device: str):
+    """The sample plan (a pause, then the end) on ``name``, with the ``occurrence``-th park's
+    last digit garbled in transit."""
+    device = device_for(name, xonxoff_device)
+    program = write_program(sample_plan(device), device)
+    if device.protocol == "hpgl":
+        pattern = "PU{},{}".format(*device.park_units)
+    else:
+        pattern = "\nX{:g} Y{:g}".format(*device.motion.park)
+    assert program.text.count(pattern) == 2  # the park before the pause, and at the end
+    wrong = str((int(pattern[-1]) + 5) % 10).encode()
+    port = open_port(SIM, device, baudrate=FAST_BAUD)
+    return device, program, Garble(port, pattern.encode(), wrong, occurrence)
+
+
+@pytest.mark.parametrize("name", DEVICE_NAMES)
+@pytest.mark.parametrize("occurrence", [1, 2], ids=["at-the-pause", "at-the-end"])
+def test_a_pen_position_that_disagrees_with_the_program_stops_the_job(name, occurrence, xonxoff_device):
+    """A digit garbled in transit is valid HP-GL or G-code: no plotter error.  The position
+    read back (HP-GL OA, GRBL MPos) at the pause and at the end tells: the job stops there,
+    the tool lifted, the operator is not asked, it is not reported done, and its resume
+    point is the last check that agreed."""
+    device, program, port = garbled_park(name, occurrence, xonxoff_device)
+    asked = []
+    with pytest.raises(StreamStopped) as stop:
+        stream(port, program, device, operator=lambda message: asked.append(message) or True)
+    assert "expected 0,0" in str(stop.value) and "line noise or lost steps" in str(stop.value)
+    assert stop.value.lifted and stop.value.plotter_error and not stop.value.cancelled
+    (pause,) = program.pauses
+    assert len(asked) == occurrence - 1
+    if occurrence == 1:
+        assert stop.value.acknowledged < pause.offset
+    else:  # a resume draws again from the last check that agreed: at the pause (GRBL: its M0 line)
+        assert pause.offset - len("M0\n") <= stop.value.acknowledged <= pause.offset
+    assert port.simulator.stats.bytes_lost == 0
+
+
+@pytest.mark.parametrize("name", ["hp7475a", "graphtec-ce6000", "roland-gx24", "xonxoff"])
+def test_an_hpgl_job_is_done_once_its_last_position_check_agreed(name, xonxoff_device):
+    device, program, port = garbled_park(name, 3, xonxoff_device)  # nothing garbled
+    result = stream(port, program, device, operator=lambda message: True)
+    assert result.sent == len(program.text)
+    written = bytes(port.written)  # the last question of the job is where the pen is
+    assert b"OE;OA;" in written[written.rindex(program.text[-10:].encode()):]
+
+
+def position_markers(written: bytes) -> list[int]:
+    """Program offsets after which the sender asked ``OE;OA;`` (checkpoints included)."""
+    offsets, program = [], 0
+    for part in re.split(rb"(OE;OA;|OE;|OS;|OA;|\x1b\.B)", written):
+        if part == b"OE;OA;":
+            offsets.append(program)
+        elif part not in (b"OE;", b"OS;", b"OA;", b"\x1b.B"):
+            program += len(part)
+    return offsets
+
+
+@pytest.mark.parametrize("name", ["hp7475a", "graphtec-ce6000", "roland-gx24", "xonxoff"])
+def test_inline_markers_carry_position_checks_mid_job(name, xonxoff_device):
+    """A motion-bound job (inline markers, no draining checkpoints): every 2048 bytes a
+    marker asks OA too; a stroke's last coordinate garbled before one stops the job there."""
+    device = device_for(name, xonxoff_device)
+    program = fabricated(str(ROOT / "jobs/vase-svg.toml"), xonxoff_device if name == "xonxoff" else name).program
+    clean = sim_port(device, baudrate=FAST_BAUD)
+    run(clean, program, device)
+    ends = set(JobProgress(program, device).ends)
+    mid_job = [offset for offset in position_markers(bytes(clean.written)) if offset in ends]
+    assert len(mid_job) >= len(program.text) // 2048 - 1
+    offset = mid_job[0]
+    pattern = program.text[offset - 8:offset - 1]  # ends with the stroke's last digit
+    wrong = str((int(pattern[-1]) + 5) % 10).encode()
+    port = Garble(open_port(SIM, device, baudrate=FAST_BAUD), pattern.encode(), wrong,
+                  program.text[:offset].count(pattern))
+    with pytest.raises(StreamStopped) as stop:
+        run(port, program, device)
+    assert f"after program byte {offset}: line noise or lost steps" in str(stop.value)
+    assert stop.value.acknowledged < offset and stop.value.plotter_error and stop.value.lifted
 
 
 # --- a naive sender loses data, foldfab does not ---------------------------------------------
