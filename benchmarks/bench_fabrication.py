@@ -191,41 +191,43 @@ def estimate_table(device_name: str = "graphtec-ce6000") -> None:
               f"ramps {ramps:4.1f} s); floor +{floor:3.1f}% (unsorted +{unsorted:4.1f}%){best}")
 
 
+def export_cases(tmp: Path) -> list[tuple[str, list[str]]]:
+    """The export benchmark's jobs, written into ``tmp``: (label, ``foldfab export`` arguments
+    without ``-o``).  Shared with ``figures.py``."""
+    big = tmp / "big.toml"  # a zigzag profile of 1,001 points x 100 corners: 101,000 faces, 12.6 m
+    points = ", ".join(f"[{0.03 * (i % 2)}, {0.05 * i:.2f}]" for i in range(1001))
+    big.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = 100\n"
+                   "radius = 2000\n[fabrication]\nsheet = [13000, 100]\nmargin = 5\n")
+    smooth = tmp / "smooth.toml"  # a smooth profile: 101,000 faces, but its profile creases are flat
+    points = ", ".join(f"[{1 + 0.8 * math.sin(i / 80):.4f}, {0.1 * i:.2f}]" for i in range(1001))
+    smooth.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = 100\n"
+                      "radius = 2000\n[fabrication]\nsheet = [13000, 200]\nmargin = 5\n")
+    paper = tmp / "paper.toml"  # 41 profile points x 24 corners: 1,000 faces
+    points = ", ".join(f"[{i % 2}, {4 * i}]" for i in range(41))
+    paper.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = 24\n"
+                     "radius = 60\n[fabrication]\nsheet = \"A3\"\nmargin = 5\nscale = 0.5\n")
+    vase = ROOT / "jobs" / "vase-svg.toml"
+    (tmp / "vase.toml").write_text(vase.read_text().replace('"vase-profile.svg"', f'"{ROOT / "jobs" / "vase-profile.svg"}"')
+                                   .replace('scale = "fit"', 'sheet = "A3"\nmargin = 5\nscale = 0.7'))
+    profile = (ROOT / "devices" / "graphtec-ce6000.toml").read_text()
+    (tmp / "long.toml").write_text(profile.replace('name = "graphtec-ce6000"', 'name = "long-roll"')
+                                   .replace("plottable_area = [1000, 375]", "plottable_area = [375, 13000]"))
+    profile = (ROOT / "devices" / "grbl.toml").read_text()
+    (tmp / "grbl-roll.toml").write_text(profile.replace('name = "grbl"', 'name = "grbl-roll"')
+                                        .replace("plottable_area = [300, 300]", "plottable_area = [13000, 375]"))
+    return [("paper scale: 1,000 faces from points", [str(paper), "--device", "graphtec-ce6000"]),
+            ("paper scale: jobs/vase-svg.toml (320 faces)", [str(tmp / "vase.toml"), "--device", "graphtec-ce6000"]),
+            ("101,000 faces, 100,000 strokes", [str(big), "--device", str(tmp / "long.toml")]),
+            ("the same as G-code (GRBL)", [str(big), "--device", str(tmp / "grbl-roll.toml")]),
+            ("101,000 faces, smooth profile: 101 strokes", [str(smooth), "--device", str(tmp / "long.toml")])]
+
+
 def export_times() -> None:
     cli = [sys.executable, "-m", "foldfab", "export"]
     print("\nfoldfab export, end to end (best of 3)")
     with tempfile.TemporaryDirectory() as tmp:
-        big = Path(tmp) / "big.toml"  # a zigzag profile of 1,001 points x 100 corners: 101,000 faces, 12.6 m
-        points = ", ".join(f"[{0.03 * (i % 2)}, {0.05 * i:.2f}]" for i in range(1001))
-        big.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = 100\n"
-                       "radius = 2000\n[fabrication]\nsheet = [13000, 100]\nmargin = 5\n")
-        smooth = Path(tmp) / "smooth.toml"  # a smooth profile: 101,000 faces, but its profile creases are flat
-        points = ", ".join(f"[{1 + 0.8 * math.sin(i / 80):.4f}, {0.1 * i:.2f}]" for i in range(1001))
-        smooth.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = 100\n"
-                          "radius = 2000\n[fabrication]\nsheet = [13000, 200]\nmargin = 5\n")
-        paper = Path(tmp) / "paper.toml"  # 41 profile points x 24 corners: 1,000 faces
-        points = ", ".join(f"[{i % 2}, {4 * i}]" for i in range(41))
-        paper.write_text(f"[profile]\npoints = [{points}]\n[trajectory]\ntemplate = \"regular\"\ncorners = 24\n"
-                         "radius = 60\n[fabrication]\nsheet = \"A3\"\nmargin = 5\nscale = 0.5\n")
-        cases = [("paper scale: 1,000 faces from points", [str(paper), "--device", "graphtec-ce6000"]),
-                 ("paper scale: jobs/vase-svg.toml (320 faces)", [str(ROOT / "jobs" / "vase-svg.toml"), "--device", "graphtec-ce6000"]),
-                 ("101,000 faces, 100,000 strokes", [str(big), "--device", str(Path(tmp) / "long.toml")]),
-                 ("the same as G-code (GRBL)", [str(big), "--device", str(Path(tmp) / "grbl-roll.toml")]),
-                 ("101,000 faces, smooth profile: 101 strokes", [str(smooth), "--device", str(Path(tmp) / "long.toml")])]
-        profile = (ROOT / "devices" / "graphtec-ce6000.toml").read_text()
-        (Path(tmp) / "long.toml").write_text(profile.replace('name = "graphtec-ce6000"', 'name = "long-roll"')
-                                             .replace("plottable_area = [1000, 375]", "plottable_area = [375, 13000]"))
-        profile = (ROOT / "devices" / "grbl.toml").read_text()
-        (Path(tmp) / "grbl-roll.toml").write_text(profile.replace('name = "grbl"', 'name = "grbl-roll"')
-                                                  .replace("plottable_area = [300, 300]", "plottable_area = [13000, 375]"))
-        vase = ROOT / "jobs" / "vase-svg.toml"
-        for label, args in cases:
+        for label, args in export_cases(Path(tmp)):
             out = Path(tmp) / ("out.gcode" if "grbl" in args[-1] else "out.plt")
-            if args[0] == str(vase):
-                job = Path(tmp) / "vase.toml"
-                job.write_text(vase.read_text().replace('"vase-profile.svg"', f'"{ROOT / "jobs" / "vase-profile.svg"}"')
-                               .replace('scale = "fit"', 'sheet = "A3"\nmargin = 5\nscale = 0.7'))
-                args = [str(job)] + args[1:]
             best = math.inf
             for _ in range(3):
                 start = time.perf_counter()
