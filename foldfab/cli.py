@@ -680,11 +680,15 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
     import signal
 
     worker = []  # the Worker once it exists: a signal then stops it through events, never lost
+    signalled, rehearsing = [], [False]
 
-    def interrupt(signum, frame) -> None:  # a second signal: stop waiting for the safe stop
-        if not worker or worker[0].interrupting:
+    def interrupt(signum, frame) -> None:
+        if worker and not worker[0].interrupting:
+            worker[0].interrupt()
+        elif signalled or rehearsing[0] or worker:  # a second signal: stop waiting for the safe stop
             raise KeyboardInterrupt
-        worker[0].interrupt()
+        else:  # while starting: noted, and acted on once the worker exists (never raised inside an import)
+            signalled.append(signum)
 
     stops = [getattr(signal, s) for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
     previous = {sig: signal.signal(sig, interrupt) for sig in stops}
@@ -694,8 +698,14 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
 
         options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
         store, console = _queue_store(args), QueueConsole(rehearsal=args.dry_run)
-        if not args.dry_run:
+        if args.dry_run:
+            rehearsing[0] = True
+            if signalled:
+                raise KeyboardInterrupt
+        else:
             worker.append(Worker(store, console, options))
+            if signalled:
+                worker[0].interrupt()  # its run ends before claiming anything
         summary = rehearse(store, console, options) if args.dry_run else worker[0].run()
     finally:
         for sig, handler in previous.items():

@@ -591,7 +591,9 @@ def test_cancel_of_a_running_job_lifts_the_tool_on_the_real_engine(store, snapsh
 @pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
 def test_a_signal_while_the_worker_starts_stops_it_cleanly(sig, tmp_path):
     """The worker's handlers come before its imports: a signal while it starts ends it with exit
-    130 and one line, no traceback, and the job stays queued."""
+    130 and one line, no traceback (it once died of SIGINT, -2, when the handler raised inside
+    an import), and the job is not lost: still queued, or, when the worker had claimed it by
+    the time the signal came, interrupted to resume."""
     queue = ["--queue", str(tmp_path / "q.sqlite3")]
     foldfab("queue", "add", str(HEXAGON), "--device", "hp7475a", "--port", "sim://hp7475a?time=fast", *queue)
     worker = subprocess.Popen(FOLDFAB + ["queue", "run", *queue], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -600,7 +602,7 @@ def test_a_signal_while_the_worker_starts_stops_it_cleanly(sig, tmp_path):
     worker.send_signal(getattr(signal, sig))
     out, err = worker.communicate(timeout=60)
     assert worker.returncode == 130 and err == "foldfab: interrupted\n", err
-    assert SqliteQueueStore(tmp_path / "q.sqlite3").job(1).state == "queued"
+    assert SqliteQueueStore(tmp_path / "q.sqlite3").job(1).state in ("queued", "interrupted")
 
 
 @pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
