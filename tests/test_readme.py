@@ -31,7 +31,7 @@ def test_the_test_command_sets_up_what_the_tests_need():
     script = ROOT / _commands()[1].split()[0]
     assert script.is_file() and script.stat().st_mode & 0o111
     text = script.read_text()
-    for need in ("hp2xx", "chromium", "python3-venv", "apt-get install", 'pip install -q -e ".[test]"',
+    for need in ("hp2xx", "chromium", "libatomic1", "python3-venv", "apt-get install", 'pip install -q -e ".[test]"',
                  "-m pytest"):
         assert need in text, need
 
