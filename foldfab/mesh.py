@@ -51,8 +51,9 @@ def _weld(points: np.ndarray, tol: float) -> np.ndarray:
     return ids
 
 
-def _candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Pairs (i < j) of boxes that share a cell of a uniform grid sized to the boxes."""
+def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Pairs (i < j) of 3D boxes that share a cell of a uniform grid sized to the boxes: every
+    two boxes that overlap are among them."""
     n = len(lo)
     # One cell size per axis: the boxes' median extent along it.  Thin, long faces (a finely
     # sampled profile) would crowd cubic cells sized to their length with millions of pairs.
@@ -131,7 +132,7 @@ def find_penetrations(cp: CreasePattern, tolerance: float = 1e-6) -> np.ndarray:
     # Broad phase on whole faces (half as many boxes as triangles), then adjacency.
     corners = v[cp.faces[faces]]
     lo, hi = corners.min(axis=1), corners.max(axis=1)
-    pairs = _candidate_pairs(lo, hi)
+    pairs = candidate_pairs(lo, hi)
     a, b = pairs[:, 0], pairs[:, 1]
     boxes = np.all((np.minimum(hi[a], hi[b]) - np.maximum(lo[a], lo[b])) > -eps, axis=1)
     fa, fb = faces[a[boxes]], faces[b[boxes]]

@@ -33,21 +33,28 @@ def user_unit(vertices: np.ndarray) -> float:
     two distinct vertices at least :data:`CLEARANCE` units apart.  A unit per design (rather
     than one fixed fine unit) keeps ordinary patterns at a readable 0.1 mm and still imports
     a pattern with sub-millimetre details exactly."""
-    shortest = _shortest_distance(vertices)
-    if shortest is None or shortest >= CLEARANCE * COARSEST_UNIT:
+    shortest = _shortest_distance(vertices, CLEARANCE * COARSEST_UNIT)
+    if shortest is None:
         return COARSEST_UNIT
     return 10.0 ** math.floor(math.log10(shortest / CLEARANCE))
 
 
-def _shortest_distance(vertices: np.ndarray) -> float | None:
-    """The distance between the closest two distinct vertices (None: fewer than two)."""
-    from scipy.spatial import cKDTree
+def _shortest_distance(vertices: np.ndarray, reach: float) -> float | None:
+    """The distance between the closest two distinct vertices, if it is under ``reach`` (None:
+    no two are that close).  Boxes of side ``reach`` round the vertices overlap for every such
+    pair, so the penetration check's uniform grid (:func:`foldfab.mesh.candidate_pairs`) finds
+    them all, in numpy alone (no spatial index to load for writing an SVG)."""
+    from foldfab.mesh import candidate_pairs
 
     unique = np.unique(vertices, axis=0)
     if len(unique) < 2:
         return None
-    distance, _ = cKDTree(unique).query(unique, k=2)
-    return float(distance[:, 1].min())
+    boxes = np.column_stack([unique, np.zeros(len(unique))])  # the grid is 3D; the sheet lies at z = 0
+    pairs = candidate_pairs(boxes - reach / 2, boxes + reach / 2)
+    if not len(pairs):
+        return None
+    shortest = float(np.hypot(*(unique[pairs[:, 0]] - unique[pairs[:, 1]]).T).min())
+    return shortest if shortest < reach else None
 
 
 def dumps(cp: CreasePattern, stroke_width: float = 0.2) -> str:
