@@ -137,9 +137,10 @@ def fabrication_report(fab, device) -> dict:
 
 def format_report(info: dict) -> str:
     """Human-readable fabrication report."""
+    from foldfab.fabrication import placement_text
+
     lines = [f"device       {info['device']}  strategy {info['strategy']}  sheet {info['sheet_mm'][0]:g} x {info['sheet_mm'][1]:g} mm",
-             f"placement    scale {info['scale']:.4g}{' (fitted to the sheet)' if info['scale_fitted'] else ''}"
-             f"{', turned 90 degrees' if info['rotated'] else ''}"]
+             f"placement    {placement_text(info['scale'], info['scale_fitted'], info['rotated'])}"]
     for name, layer in info["layers"].items():
         lines.append(f"{name:<12} {layer['drawn_mm']:>9.1f} mm drawn {layer['pen_lifts']:>6} pen lifts "
                      f"{layer['travel_mm']:>9.1f} mm travel {layer['time_s']:>8.1f} s")
@@ -231,14 +232,8 @@ def _operator(args: argparse.Namespace, prompting: list[bool]):
     if sys.stdin.isatty():
         def ask(message: str) -> bool:
             print(f"\npause: {message}", file=sys.stderr)
-            prompting[0] = True
-            try:
-                answer = input("Press Enter to continue, or type q and Enter to stop: ")
-            except (EOFError, KeyboardInterrupt):
-                return False
-            finally:
-                prompting[0] = False
-            return answer.strip().lower() not in ("q", "quit", "stop")
+            answer = _ask(prompting, "Press Enter to continue, or type q and Enter to stop: ")
+            return answer is not None and answer.strip().lower() not in ("q", "quit", "stop")
         return ask
     if args.yes:
         def scripted(message: str) -> bool:
@@ -268,13 +263,10 @@ def _chooser(args: argparse.Namespace, prompting: list[bool]):
               f"  p  trust the plotter: {trusted}\n"
               "  q  stop here; the resume token stays valid", file=sys.stderr)
         while True:
-            prompting[0] = True  # a signal now ends the question (as no answer), not the plot
-            try:
-                answer = input("Look at the sheet, then type a, p or q and Enter: ").strip().lower()
-            except (EOFError, KeyboardInterrupt):
+            answer = _ask(prompting, "Look at the sheet, then type a, p or q and Enter: ")
+            if answer is None:
                 return None
-            finally:
-                prompting[0] = False
+            answer = answer.strip().lower()
             if answer in ("a", "p", "q"):
                 return {"a": location.acknowledged, "p": location.stroke, "q": None}[answer]
     return choose
@@ -415,13 +407,19 @@ def _load_sheet(args: argparse.Namespace, port: str, sheet, device: str, cancel,
             f"Load a {sheet[0]:g} x {sheet[1]:g} mm sheet")
     print(f"{what} on the {device}, then press Enter to start (Ctrl-C: stop): ", end="", file=sys.stderr,
           flush=True)
-    prompting[0] = True  # a signal now raises KeyboardInterrupt in input()
+    if _ask(prompting, cancel=cancel) is None:
+        raise _NotStarted
+
+
+def _ask(prompting: list[bool], prompt: str = "", cancel=None) -> str | None:
+    """A line the operator types; None at end of input or on a signal: while ``prompting``,
+    :func:`cmd_plot`'s handler raises KeyboardInterrupt, which ends the question, not the plot
+    (``cancel``: a stop already asked for before the question)."""
+    prompting[0] = True
     try:
-        if cancel.is_set():
-            raise _NotStarted
-        input()
+        return None if cancel is not None and cancel.is_set() else input(prompt)
     except (EOFError, KeyboardInterrupt):
-        raise _NotStarted from None
+        return None
     finally:
         prompting[0] = False
 

@@ -30,6 +30,11 @@ FLIPS = {"left": "left-right (about the vertical axis)", "top": "top-bottom (abo
 FLIP_EDGES = tuple(FLIPS)
 
 
+def placement_text(scale: float, fitted: bool, rotated: bool) -> str:
+    """The scale a design is drawn at and whether it is turned, as the report and the preview say it."""
+    return f"scale {scale:.4g}" + (" (fitted to the sheet)" if fitted else "") + (", turned 90 degrees" if rotated else "")
+
+
 @dataclass(frozen=True)
 class FabricationSpec:
     """The validated ``[fabrication]`` table."""
@@ -318,9 +323,8 @@ class Fabrication:
 
     @property
     def placement_summary(self) -> str:
-        """The scale the design is drawn at and whether it is turned, as the report and preview say it."""
-        fitted = " (fitted to the sheet)" if self.spec.scale == "fit" else ""
-        return f"scale {self.placement.scale:.4g}{fitted}" + (", turned 90 degrees" if self.placement.rotated else "")
+        """The scale the design is drawn at and whether it is turned (:func:`placement_text`)."""
+        return placement_text(self.placement.scale, self.spec.scale == "fit", self.placement.rotated)
 
     @cached_property
     def travel_after(self) -> dict:
