@@ -336,11 +336,11 @@ machine origin; HP-GL plotters: their origin)."""
 
 
 def locate(program: Program, device: DeviceProfile, port: str, stroke: int, pauses_done: int,
-           **settings) -> Location:
+           strokes: list[Stroke] | None = None, **settings) -> Location:
     """Where to resume: ``stroke`` (the first not acknowledged), moved on past the strokes
     the plotter drew after its host lost it, as far as asking the plotter can tell
-    (:func:`foldfab.stream.locate_pen`, :func:`first_undrawn`).  ``settings`` are
-    :func:`foldfab.transport.open_port`'s.
+    (:func:`foldfab.stream.locate_pen`, :func:`first_undrawn`).  ``strokes``: the program's,
+    where the caller has them already; ``settings`` are :func:`foldfab.transport.open_port`'s.
 
     A position is doubtful proof (:attr:`Location.doubt`) when it is also the power-on
     state (a board switched off and on that does not greet on opening looks exactly like
@@ -350,7 +350,7 @@ def locate(program: Program, device: DeviceProfile, port: str, stroke: int, paus
     from foldfab.stream import CHECK_EVERY, locate_pen
     from foldfab.transport import open_port
 
-    strokes = interpret(program, device).strokes
+    strokes = interpret(program, device).strokes if strokes is None else strokes
     here = partial(Location, stroke, stroke, len(strokes))
     try:
         link = open_port(port, device, **settings)
@@ -513,12 +513,12 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
                 events(JobProgress(program, device).event("done", end, end, 0.0, message=found))
             state.path.unlink(missing_ok=True)
             return StreamResult(0, 0.0, 0.0, 0)
-        cut = strokes[first].offset
+        before = sum(p.offset <= strokes[first].offset for p in program.pauses)
         # pauses confirmed, as far as they lie before the stroke resumed at (the operator may go back)
-        confirmed = min(state.pauses_done, sum(p.offset <= cut for p in program.pauses))
+        confirmed = min(state.pauses_done, before)
         note = f"resuming at stroke {first + 1} of {len(strokes)}" + (f": {found}" if found else "")
         sending = resume_program(program, device, first, confirmed)
-        pending = sum(p.offset <= cut for p in program.pauses) - confirmed
+        pending = before - confirmed
         state = replace(state, pauses_done=confirmed)
     progress = JobProgress(sending, device)
     try:
@@ -564,7 +564,7 @@ def _start(state: ResumeState, program: Program, device: DeviceProfile, port: st
         return from_stroke, "chosen by the operator (--from-stroke)"
     if not state.locate:
         return state.stroke, "the plotter reported an error, so where it stopped is not used"
-    found = locate(program, device, port, state.stroke, state.pauses_done, **settings)
+    found = locate(program, device, port, state.stroke, state.pauses_done, strokes, **settings)
     if not found.doubt:
         return found.stroke, found.note
     chosen = choose(found) if choose is not None else None
