@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from foldfab import templates
-from foldfab.crease_pattern import build_crease_pattern
-from foldfab.mesh import find_penetrations, to_trimesh
-from foldfab.reflection import reflect
+from foldfab.geometry import templates
+from foldfab.geometry.crease_pattern import build_crease_pattern
+from foldfab.geometry.model import find_penetrations, to_trimesh
+from foldfab.geometry.reflection import reflect
 
 from warm_bytecode import cache_foldfab_bytecode
 

@@ -16,11 +16,11 @@ from pathlib import Path
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
-from foldfab.estimate import estimate, travel_times
-from foldfab.fabrication import build_plan, fabricate, parse_fabrication, park_position
-from foldfab.interpret import interpret
-from foldfab.optimize import travel
-from foldfab.plan import PlotPlan
+from foldfab.programs.estimate import estimate, travel_times
+from foldfab.fabrication.spec import build_plan, fabricate, parse_fabrication, park_position
+from foldfab.programs.interpret import interpret
+from foldfab.fabrication.optimize import travel
+from foldfab.fabrication.plan import PlotPlan
 
 from warm_bytecode import cache_foldfab_bytecode
 
@@ -70,7 +70,7 @@ def travel_floor(strokes, park: complex, device) -> float:
     different one, and the last with home: an assignment.  A move from stroke j to stroke
     i takes at least the quickest move between their candidate points (either end of an
     open stroke, any vertex of a closed one, which may start anywhere), each timed as the
-    estimate times a pen-up move (:func:`~foldfab.estimate.travel_times`); a stroke can only follow
+    estimate times a pen-up move (:func:`~foldfab.programs.estimate.travel_times`); a stroke can only follow
     one of its own layer or of the layer before.  The cheapest assignment
     (``scipy.optimize.linear_sum_assignment``) is then a floor for every plan; it ignores
     that the pairs must form one path and that a stroke leaves from the other end than it

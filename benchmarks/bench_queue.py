@@ -35,8 +35,8 @@ def fill(queue: Path, count: int) -> None:
     """``count`` jobs, each with its own snapshot of a paper job's program; a mix of states."""
     from foldfab.design import load_design
     from foldfab.devices import load_device
-    from foldfab.fabrication import fabricate
-    from foldfab.queue import NewJob, SqliteQueueStore, WorkerId, make_snapshot
+    from foldfab.fabrication.spec import fabricate
+    from foldfab.queue.store import NewJob, SqliteQueueStore, WorkerId, make_snapshot
 
     device = load_device("graphtec-ce6000")
     job = ROOT / "jobs" / "hexagon-fig8a.toml"

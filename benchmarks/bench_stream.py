@@ -29,9 +29,9 @@ from pathlib import Path
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
-from foldfab.fabrication import fabricate, parse_fabrication
-from foldfab.stream import StreamStopped, stream
-from foldfab.transport import open_port
+from foldfab.fabrication.spec import fabricate, parse_fabrication
+from foldfab.plotting.stream import StreamStopped, stream
+from foldfab.plotting.transport import open_port
 
 ROOT = Path(__file__).resolve().parent.parent
 DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]

@@ -14,10 +14,10 @@ import numpy as np
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
-from foldfab.fabrication import fabricate
+from foldfab.fabrication.spec import fabricate
 from foldfab.formats import svg
-from foldfab.interpret import interpret
-from foldfab.preview import render_preview
+from foldfab.programs.interpret import interpret
+from foldfab.programs.preview import render_preview
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "docs" / "img"

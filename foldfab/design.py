@@ -11,11 +11,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from foldfab.crease_pattern import CreasePattern, build_crease_pattern
+from foldfab.geometry.crease_pattern import CreasePattern, build_crease_pattern
 from foldfab.errors import DesignError, FoldfabError
 from foldfab.job import Job, SvgSource
 from foldfab.limits import MAX_FACES
-from foldfab.reflection import Reflection, reflect
+from foldfab.geometry.reflection import Reflection, reflect
 
 
 @dataclass(frozen=True)
@@ -30,7 +30,7 @@ class Design:
 
 
 def _svg_points(source: SvgSource, where: str) -> np.ndarray:
-    from foldfab.svg_polyline import read_svg_polyline
+    from foldfab.geometry.svg_input import read_svg_polyline
 
     return read_svg_polyline(source.file, source.path, source.samples, source.tolerance, where)
 
@@ -47,7 +47,7 @@ def profile_points(job: Job) -> np.ndarray:
 
 def trajectory_points(job: Job) -> np.ndarray:
     """The trajectory polyline (N, 3) in mm: a template, the given points, or an SVG path."""
-    from foldfab import templates
+    from foldfab.geometry import templates
 
     spec = job.trajectory
     if spec.template == "regular":
@@ -104,7 +104,7 @@ def build_design(job: Job, *, check_penetration: bool = True, allow_penetration:
     penetrations = np.zeros((0, 2), np.int64)
     warnings: list[str] = []
     if check_penetration:
-        from foldfab.mesh import find_penetrations
+        from foldfab.geometry.model import find_penetrations
 
         penetrations = find_penetrations(cp)
         if len(penetrations):

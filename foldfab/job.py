@@ -319,7 +319,7 @@ def job_from_data(data: dict[str, Any], path: str | Path = "<job>", text: str = 
     fabrication = data.get("fabrication", {})
     if not isinstance(fabrication, dict):
         raise FoldfabError(f"{source}: [fabrication]: expected a table")
-    from foldfab.fabrication import parse_fabrication
+    from foldfab.fabrication.spec import parse_fabrication
 
     parse_fabrication(fabrication, source)  # a mistake there is the job's, whichever command reads it
     return Job(path, name, profile, trajectory, crease, fabrication, text, max_faces)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from foldfab.crease_pattern import CreasePattern
-from foldfab.reflection import Reflection
+from foldfab.geometry.crease_pattern import CreasePattern
+from foldfab.geometry.reflection import Reflection
 
 PAIRS = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 2), (1, 3)]
 

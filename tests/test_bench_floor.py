@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from foldfab.devices import load_device
-from foldfab.estimate import move_times, travel_times
+from foldfab.programs.estimate import move_times, travel_times
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 from bench_fabrication import optimal_travel, travel_floor  # noqa: E402

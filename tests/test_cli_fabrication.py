@@ -13,7 +13,7 @@ import pytest
 
 from foldfab.cli import main
 from foldfab.devices import load_device
-from foldfab.interpret import interpret
+from foldfab.programs.interpret import interpret
 
 ROOT = Path(__file__).resolve().parent.parent
 HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"

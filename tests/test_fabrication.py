@@ -13,11 +13,11 @@ from hypothesis import strategies as st
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.estimate import estimate
-from foldfab.fabrication import fabricate, finish_plan, parse_fabrication
-from foldfab.interpret import interpret
-from foldfab.program import write_program
-from foldfab.scoring import _chains, crease_lines, outline_loops
+from foldfab.programs.estimate import estimate
+from foldfab.fabrication.spec import fabricate, finish_plan, parse_fabrication
+from foldfab.programs.interpret import interpret
+from foldfab.programs.program import write_program
+from foldfab.fabrication.scoring import _chains, crease_lines, outline_loops
 
 ROOT = Path(__file__).resolve().parent.parent
 JOBS = sorted((ROOT / "jobs").glob("*.toml"))
@@ -436,8 +436,8 @@ def test_fitted_scale_is_accepted_and_a_hair_more_is_refused(w, h, sheet, reach,
     """For any design extent, sheet, device reach, margin, turn and (two-sided) flip, the fitted
     scale passes the same placement check as a given scale, lands inside the usable region, is
     the better of the two turns, and 1.001 times it is refused."""
-    from foldfab.fabrication import both_sides
-    from foldfab.placement import fit, largest_scale, usable
+    from foldfab.fabrication.spec import both_sides
+    from foldfab.fabrication.placement import fit, largest_scale, usable
 
     bounds = (complex(-w / 3, 7.0), complex(2 * w / 3, 7.0 + h))
     area = (reach[0], reach[1], reach[0] + reach[2], reach[1] + reach[3])

@@ -14,10 +14,10 @@ from test_interpret import assert_round_trip, make_document, random_plans, sampl
 
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.hpgl import write_hpgl
-from foldfab.interpret import HPGLTokenizer
-from foldfab.plan import Pass, PlotPlan, Tool
-from foldfab.program import write_program
+from foldfab.programs.hpgl import write_hpgl
+from foldfab.programs.interpret import HPGLTokenizer
+from foldfab.fabrication.plan import Pass, PlotPlan, Tool
+from foldfab.programs.program import write_program
 
 HPGL_DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24"]
 

@@ -109,7 +109,7 @@ def test_a_resume_state_that_is_no_regular_file_is_refused(unreadable, tmp_path)
     else:
         path.rename(state)
     env = {"XDG_STATE_HOME": str(tmp_path / "state")}
-    message = library(f"from foldfab.resume import load_state, state_dir\n"
+    message = library(f"from foldfab.plotting.resume import load_state, state_dir\n"
                       f"assert state_dir() == __import__('pathlib').Path({str(folder)!r})\nload_state({token!r})", env)
     assert f"{state}: {kind}" in message
 
@@ -202,8 +202,8 @@ clearance = 0.1
 def test_a_program_over_the_stroke_limit_is_refused_before_it_is_cut(tmp_path):
     from foldfab.devices import load_device
     from foldfab.errors import FoldfabError
-    from foldfab.fabrication import fabricate, parse_fabrication
-    from foldfab.interpret import interpret
+    from foldfab.fabrication.spec import fabricate, parse_fabrication
+    from foldfab.programs.interpret import interpret
 
     job = tmp_path / "fine.toml"
     job.write_text(PERFORATED.format(limit=500))

@@ -19,12 +19,12 @@ from hypothesis import strategies as st
 
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.interpret import GcodeMachine, HPGLMachine, HPGLTokenizer
-from foldfab.progress import JobProgress
-from foldfab.resume import (PlotStopped, ResumeAmbiguous, first_undrawn, load_state, locate, locate_resume,
+from foldfab.programs.interpret import GcodeMachine, HPGLMachine, HPGLTokenizer
+from foldfab.plotting.progress import JobProgress
+from foldfab.plotting.resume import (PlotStopped, ResumeAmbiguous, first_undrawn, load_state, locate, locate_resume,
                             plot, resume_program)
-from foldfab.stream import PenPosition, StreamStopped, locate_pen, stream
-from foldfab.transport import open_port
+from foldfab.plotting.stream import PenPosition, StreamStopped, locate_pen, stream
+from foldfab.plotting.transport import open_port
 from test_resume import FLOWS, job_for, leading_matches
 from test_stream import FAST_BAUD, JOBS, ROOT, device_for, fabricated, strokes_of
 from test_stream import xonxoff_device  # noqa: F401  (a fixture)
@@ -291,23 +291,23 @@ POWER_CYCLED = [(flow, "") for flow in HPGL_FLOWS] + [("grbl", "&reset_on_open=0
 
 
 def session_plotter(session: str):
-    from foldfab.urlhandler.protocol_sim import _SESSIONS
+    from foldfab.plotting.urlhandler.protocol_sim import _SESSIONS
 
     return _SESSIONS[session]
 
 
 def cancel_after(count: int, cancel: threading.Event, monkeypatch) -> None:
     """Ctrl-C once the plotter has received ``count`` bytes (of the ports plot() opens)."""
-    import foldfab.transport
+    import foldfab.plotting.transport
 
-    real = foldfab.transport.open_port
+    real = foldfab.plotting.transport.open_port
 
     def counting(url, device, **kw):
         port = real(url, device, **kw)
         write = port.write
         port.write = lambda data: (port.simulator.stats.bytes_received >= count and cancel.set(), write(data))[1]
         return port
-    monkeypatch.setattr(foldfab.transport, "open_port", counting)
+    monkeypatch.setattr(foldfab.plotting.transport, "open_port", counting)
 
 
 def drawn_strokes(plotter) -> list:

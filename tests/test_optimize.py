@@ -1,4 +1,4 @@
-"""Layer optimization helpers (foldfab.optimize): tiled sorting of large layers, simplification
+"""Layer optimization helpers (foldfab.fabrication.optimize): tiled sorting of large layers, simplification
 of only the lines that can change."""
 
 from __future__ import annotations
@@ -8,12 +8,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from foldfab import optimize
+from foldfab.fabrication import optimize
 from foldfab.design import build_design
 from foldfab.job import parse_job
-from foldfab.optimize import (KEPT_WHOLE_POINTS, _kept_whole, _Onward, _onward, _reloop, _simplify,
+from foldfab.fabrication.optimize import (KEPT_WHOLE_POINTS, _kept_whole, _Onward, _onward, _reloop, _simplify,
                               _sort, _tiles)
-from foldfab.scoring import crease_lines
+from foldfab.fabrication.scoring import crease_lines
 
 
 def _run(pipeline: str, lines: list[np.ndarray]) -> list[np.ndarray]:
@@ -179,7 +179,7 @@ def test_device_steps_stop_before_each_other_tool_that_draws(steps):
     the last pass that drew; empty passes and pauses change nothing; indices stay the plan's."""
     import vpype as vp
 
-    from foldfab.plan import Pass, Pause, PlotPlan, Tool, device_steps
+    from foldfab.fabrication.plan import Pass, Pause, PlotPlan, Tool, device_steps
 
     doc = vp.Document()
     plan_steps = []
@@ -211,8 +211,8 @@ def test_a_layer_after_a_pause_is_sorted_from_the_park_position():
     position, not at the one nearest where the layer before ended; travel counts the way there."""
     import vpype as vp
 
-    from foldfab.optimize import optimize_plan, travel
-    from foldfab.plan import Pass, Pause, PlotPlan, Tool
+    from foldfab.fabrication.optimize import optimize_plan, travel
+    from foldfab.fabrication.plan import Pass, Pause, PlotPlan, Tool
 
     doc = vp.Document()
     doc.add(vp.LineCollection([np.array([100 + 100j, 150 + 100j])]), 1)

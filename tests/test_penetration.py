@@ -9,13 +9,13 @@ import pytest
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
-from foldfab import templates
-from foldfab.crease_pattern import build_crease_pattern
+from foldfab.geometry import templates
+from foldfab.geometry.crease_pattern import build_crease_pattern
 from foldfab.errors import DesignError
 from foldfab.job import parse_job
 from foldfab.design import build_design
-from foldfab.mesh import find_penetrations, to_trimesh
-from foldfab.reflection import reflect
+from foldfab.geometry.model import find_penetrations, to_trimesh
+from foldfab.geometry.reflection import reflect
 
 
 def _segment_crosses(p, q, tri, margin, depth=0.0):

@@ -20,8 +20,8 @@ from processes import wait_for_handler
 
 from foldfab.cli import main
 from foldfab.devices import load_device
-from foldfab.resume import state_dir
-from foldfab.transport import open_port
+from foldfab.plotting.resume import state_dir
+from foldfab.plotting.transport import open_port
 
 ROOT = Path(__file__).resolve().parent.parent
 HELIX = str(ROOT / "jobs/helix-fig12.toml")

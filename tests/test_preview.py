@@ -10,10 +10,10 @@ import pytest
 from test_interpret import sample_plan
 
 from foldfab.devices import load_device
-from foldfab.estimate import estimate
-from foldfab.interpret import interpret
-from foldfab.preview import COLORS, render_preview
-from foldfab.program import write_program
+from foldfab.programs.estimate import estimate
+from foldfab.programs.interpret import interpret
+from foldfab.programs.preview import COLORS, render_preview
+from foldfab.programs.program import write_program
 
 SVG = "{http://www.w3.org/2000/svg}"
 

@@ -21,8 +21,8 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, 
 from foldfab.cli import main
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.program import PauseMark, Program
-from foldfab.queue import (MIGRATIONS, SCHEMA_VERSION, NewJob, SqliteQueueStore, WorkerId,
+from foldfab.programs.program import PauseMark, Program
+from foldfab.queue.store import (MIGRATIONS, SCHEMA_VERSION, NewJob, SqliteQueueStore, WorkerId,
                            load_snapshot_device, make_snapshot)
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -318,7 +318,7 @@ def test_upgrade_from_schema_version_1(tmp_path):
     db.executescript(MIGRATIONS[0])
     db.execute("PRAGMA user_version = 1")
     snap = snapshot()
-    from foldfab.queue import _program_meta
+    from foldfab.queue.store import _program_meta
 
     db.execute("INSERT INTO snapshots (name, job_path, device, program_bytes, program_sha256, program_meta, "
                "job_text, device_text, program) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -655,7 +655,7 @@ def test_snapshot_does_not_change_when_the_job_and_its_svg_change(tmp_path, caps
 
 class QueueMachine(RuleBasedStateMachine):
     """Any sequence of operators' and workers' actions keeps the queue's promises: the states
-    follow the transitions of :mod:`foldfab.queue`, a plotter runs one job at a time, a plotter
+    follow the transitions of :mod:`foldfab.queue.store`, a plotter runs one job at a time, a plotter
     with an interrupted job runs nothing else, nothing is lost but what is removed."""
 
     PORTS = ("sim://a", "sim://b")

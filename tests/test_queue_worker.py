@@ -21,12 +21,12 @@ from processes import wait_for_handler
 from foldfab.cli import main
 from foldfab.design import load_design
 from foldfab.devices import load_device
-from foldfab.fabrication import fabricate, parse_fabrication
-from foldfab.interpret import interpret
-from foldfab.progress import JobProgress
-from foldfab.queue import NewJob, SqliteQueueStore, make_snapshot
-from foldfab.stream import StreamStopped
-from foldfab.worker import PortUnavailable, Worker, WorkerOptions, rehearse, start_point
+from foldfab.fabrication.spec import fabricate, parse_fabrication
+from foldfab.programs.interpret import interpret
+from foldfab.plotting.progress import JobProgress
+from foldfab.queue.store import NewJob, SqliteQueueStore, make_snapshot
+from foldfab.plotting.stream import StreamStopped
+from foldfab.queue.worker import PortUnavailable, Worker, WorkerOptions, rehearse, start_point
 
 ROOT = Path(__file__).resolve().parent.parent
 HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
@@ -562,8 +562,8 @@ def test_dry_run_once_rehearses_one_job_as_a_run_would(store, snapshots, mode, r
 
 
 def test_cancel_of_a_running_job_lifts_the_tool_on_the_real_engine(store, snapshots):
-    from foldfab.transport import open_port
-    from foldfab.stream import stream
+    from foldfab.plotting.transport import open_port
+    from foldfab.plotting.stream import stream
 
     snap = snapshots[("hp7475a", "perforate")]  # 12 kB: more than the 1 kB buffer, so acknowledged early
     store.add([NewJob(snap, "sim://hp7475a?time=fast&speedup=10")])
@@ -655,8 +655,8 @@ def test_flip_answered_on_the_workers_terminal(tmp_path, typed, state):
 def test_a_job_whose_last_run_failed_is_not_located():
     """A plotter error means an instruction was skipped: the plotter's position would place the
     resume past a stroke it did not draw correctly."""
-    from foldfab.queue import Event
-    from foldfab.worker import _failed_last
+    from foldfab.queue.store import Event
+    from foldfab.queue.worker import _failed_last
 
     def log(*kinds):
         return [Event(float(i), kind, "") for i, kind in enumerate(kinds)]
@@ -670,7 +670,7 @@ def test_an_earlier_save_never_lands_after_a_later_one():
     """The heartbeat thread and the plotting thread (before a pause) both save progress: the
     save that reads the progress first must also write it first (seen: a job waiting at its
     pause with the acknowledged bytes of the stroke before it)."""
-    from foldfab.worker import _Heartbeat
+    from foldfab.queue.worker import _Heartbeat
 
     class SlowStore:
         def __init__(self):

@@ -10,11 +10,11 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from foldfab import templates
-from foldfab.crease_pattern import build_crease_pattern
+from foldfab.geometry import templates
+from foldfab.geometry.crease_pattern import build_crease_pattern
 from foldfab.design import load_design
 from foldfab.errors import DesignError
-from foldfab.reflection import reflect
+from foldfab.geometry.reflection import reflect
 from invariants import assert_design_invariants
 
 JOBS = sorted((Path(__file__).parent.parent / "jobs").glob("*.toml"))

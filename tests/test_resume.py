@@ -22,10 +22,10 @@ import pytest
 
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.progress import JobProgress
-from foldfab.resume import (PlotStopped, ResumeState, check_state, load_state, plot, program_hash,
+from foldfab.plotting.progress import JobProgress
+from foldfab.plotting.resume import (PlotStopped, ResumeState, check_state, load_state, plot, program_hash,
                             resume_program, save_state, state_dir)
-from foldfab.stream import LEAD, StreamStopped, stream
+from foldfab.plotting.stream import LEAD, StreamStopped, stream
 from test_stream import (FAST_BAUD, JOBS, ROOT, device_for, fabricated, same_strokes, sim_port,
                          strokes_of)
 from test_stream import xonxoff_device  # noqa: F401  (a fixture)
@@ -327,15 +327,15 @@ def test_a_changed_program_device_or_job_is_refused():
 @pytest.fixture
 def opened(monkeypatch):
     """The ports plot() opens (their simulators stay readable after plot closes them)."""
-    import foldfab.transport
+    import foldfab.plotting.transport
 
     ports = []
-    real = foldfab.transport.open_port
+    real = foldfab.plotting.transport.open_port
 
     def spy(url, device, **kw):
         ports.append(real(url, device, **kw))
         return ports[-1]
-    monkeypatch.setattr(foldfab.transport, "open_port", spy)
+    monkeypatch.setattr(foldfab.plotting.transport, "open_port", spy)
     return ports
 
 
@@ -536,7 +536,7 @@ def test_without_a_terminal_an_uncertain_resume_stops_and_says_what_to_run(power
     report "done" with 23 strokes undrawn.  Without a terminal (or with --json) foldfab stops with
     exit 2, keeps the token, and prints the two commands to choose from; the chosen one finishes."""
     from foldfab.cli import main
-    from foldfab.urlhandler.protocol_sim import _SESSIONS
+    from foldfab.plotting.urlhandler.protocol_sim import _SESSIONS
 
     args, token, session = power_cycled
     assert main([*args, "--resume", token, "--json"]) == 2
@@ -559,7 +559,7 @@ def test_without_a_terminal_an_uncertain_resume_stops_and_says_what_to_run(power
 @pytest.mark.parametrize("answer", ["a", "p", "q"])
 def test_on_a_terminal_the_operator_is_asked(answer, power_cycled, capsys, monkeypatch):
     from foldfab.cli import main
-    from foldfab.urlhandler.protocol_sim import _SESSIONS
+    from foldfab.plotting.urlhandler.protocol_sim import _SESSIONS
 
     args, token, session = power_cycled
     answers = iter(["", "maybe", answer])

@@ -26,12 +26,12 @@ from hypothesis import strategies as st
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.estimate import estimate, move_limits, move_times, polyline_runs, travel_times
-from foldfab.fabrication import fabricate, parse_fabrication
-from foldfab.interpret import HPGLMachine, HPGLTokenizer, interpret
+from foldfab.programs.estimate import estimate, move_limits, move_times, polyline_runs, travel_times
+from foldfab.fabrication.spec import fabricate, parse_fabrication
+from foldfab.programs.interpret import HPGLMachine, HPGLTokenizer, interpret
 from foldfab.sim import SimOptions, create_simulator, parse_options
 from foldfab.sim.pty import serve_pty
-from foldfab.transport import open_port, register_handlers
+from foldfab.plotting.transport import open_port, register_handlers
 
 ROOT = Path(__file__).resolve().parent.parent
 JOB = ROOT / "jobs" / "hexagon-fig8a.toml"
@@ -973,7 +973,7 @@ def test_a_session_reopened_resets_the_board_as_it_is_now():
 def test_recorded_svg_names_strokes_by_the_layer_whose_tool_drew_them():
     """A device gets tools, not layer names: the SVG names each stroke by the profile's layer with
     that tool; layers sharing one tool share a name and the first one's colour."""
-    from foldfab.preview import layer_color
+    from foldfab.programs.preview import layer_color
     from foldfab.sim.record import layer_named
 
     device = load_device("graphtec-ce6000")  # valley and mountain: pen 1, force 6; cut: force 18

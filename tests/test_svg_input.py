@@ -24,7 +24,7 @@ from svgpathtools import CubicBezier, parse_path
 from foldfab.design import load_design, profile_points, trajectory_points
 from foldfab.errors import FoldfabError
 from foldfab.job import load_job
-from foldfab.svg_polyline import DEFAULT_TOLERANCE, read_svg_polyline
+from foldfab.geometry.svg_input import DEFAULT_TOLERANCE, read_svg_polyline
 
 JOBS = Path(__file__).resolve().parent.parent / "jobs"
 PX = 25.4 / 96  # mm per CSS pixel
@@ -440,7 +440,7 @@ def test_reading_svg_leaves_scipy_integrate_unloaded_and_svgpathtools_whole():
     code = textwrap.dedent(f"""\
         import sys
         from pathlib import Path
-        from foldfab.svg_polyline import read_svg_polyline
+        from foldfab.geometry.svg_input import read_svg_polyline
         read_svg_polyline(Path({str(JOBS / "vase-profile.svg")!r}), "profile", samples=50)
         print("scipy.integrate" in sys.modules)
         import svgpathtools

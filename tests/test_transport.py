@@ -14,7 +14,7 @@ from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.sim import SimOptions, create_simulator
 from foldfab.sim.pty import serve_pty
-from foldfab.transport import HANDLER_PACKAGE, open_port
+from foldfab.plotting.transport import HANDLER_PACKAGE, open_port
 
 
 def test_profile_settings_and_overrides():
@@ -58,7 +58,7 @@ def test_a_broken_handler_shows_its_real_import_error(monkeypatch):
     monkeypatch.setitem(sys.modules, "foldfab.sim.clock", None)  # a dependency fails to import
     with pytest.raises(ValueError, match="protocol 'sim' not known"):
         serial.serial_for_url("sim://grbl")  # all pyserial can say
-    with pytest.raises(FoldfabError, match=r"handler \(foldfab.urlhandler.protocol_sim\) cannot be "
+    with pytest.raises(FoldfabError, match=r"handler \(foldfab.plotting.urlhandler.protocol_sim\) cannot be "
                                            r"imported: import of foldfab.sim.clock halted"):
         open_port("sim://grbl")
 

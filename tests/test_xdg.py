@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from foldfab.devices import _user_dir
-from foldfab.queue import default_queue_path
-from foldfab.resume import state_dir
+from foldfab.queue.store import default_queue_path
+from foldfab.plotting.resume import state_dir
 from foldfab.xdg import foldfab_dir
 
 FOLDERS = [("XDG_CONFIG_HOME", ".config", lambda: _user_dir(), "devices"),

@@ -12,7 +12,7 @@ import json
 import numpy as np
 
 from foldfab import __version__
-from foldfab.crease_pattern import CreasePattern
+from foldfab.geometry.crease_pattern import CreasePattern
 
 
 def to_fold(cp: CreasePattern, title: str = "") -> dict:

@@ -5,7 +5,7 @@ ORIPA has no flat type; flat creases are left out (they are never folded).
 
 from __future__ import annotations
 
-from foldfab.crease_pattern import CreasePattern
+from foldfab.geometry.crease_pattern import CreasePattern
 
 TYPES = {"B": 1, "M": 2, "V": 3}
 

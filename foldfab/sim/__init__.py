@@ -8,7 +8,7 @@ device profile and :class:`~foldfab.sim.options.SimOptions`, run on a virtual cl
 :class:`~foldfab.sim.record.SimStats`.
 
 Reach them as a pyserial port, ``sim://DEVICE?option=value&...``
-(:mod:`foldfab.urlhandler.protocol_sim`, opened by :func:`foldfab.transport.open_port`),
+(:mod:`foldfab.plotting.urlhandler.protocol_sim`, opened by :func:`foldfab.plotting.transport.open_port`),
 or on a pseudo-terminal any program can open (:func:`foldfab.sim.pty.serve_pty`,
 ``foldfab sim NAME --pty``).
 """

@@ -1,11 +1,11 @@
 """Timed execution: the interpreters' machines, with every move and pen lift as a Block.
 
-A simulator runs :class:`~foldfab.interpret.HPGLMachine` or
-:class:`~foldfab.interpret.GcodeMachine` with the :class:`Timed` mixin: each pen move,
+A simulator runs :class:`~foldfab.programs.interpret.HPGLMachine` or
+:class:`~foldfab.programs.interpret.GcodeMachine` with the :class:`Timed` mixin: each pen move,
 pen down and pen up the machine makes is handed to the simulator as a :class:`Block`,
 which the simulator executes on its virtual clock.
 
-Durations follow :mod:`foldfab.estimate`'s model for the device.  A pen-up move is one
+Durations follow :mod:`foldfab.programs.estimate`'s model for the device.  A pen-up move is one
 trapezoid at the travel speed; each pen down and pen up costs ``pen_lift_time``; with
 ``axis_limits`` every move's speed and acceleration are scaled by its axis factor as the
 estimate scales them.
@@ -17,7 +17,7 @@ estimate scales them.
   all, as the estimate counts it) and any other starts a new run.
 * Junction speeds (a ``junction_deviation``): a pen-down move is a *planned* block that
   carries its length, speed and the highest entry speed its junction with the move
-  before allows (:func:`~foldfab.estimate.junction_speeds`, as GRBL computes it when a
+  before allows (:func:`~foldfab.programs.estimate.junction_speeds`, as GRBL computes it when a
   block enters its planner).  Its duration is fixed when it starts
   (:func:`plan_start`): it enters at the speed the block before left at, and leaves at
   the speed a backward pass over the blocks then in the planner allows, the last of
@@ -37,9 +37,9 @@ import math
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
-from foldfab.estimate import (CONTINUATION_ANGLE, junction_speeds, move_limits, move_times, plan_speeds,
+from foldfab.programs.estimate import (CONTINUATION_ANGLE, junction_speeds, move_limits, move_times, plan_speeds,
                               segment_times, travel_times)
-from foldfab.interpret import GcodeMachine, HPGLMachine, Stroke
+from foldfab.programs.interpret import GcodeMachine, HPGLMachine, Stroke
 
 Point = tuple[float, float]
 
@@ -76,7 +76,7 @@ def plan_start(blocks: Sequence[Block], entry: float) -> tuple[float, float]:
     """Duration and squared exit speed of the first of ``blocks`` (the planner, head first, a
     planned block) when it starts at squared speed ``entry``.
 
-    Its exit speed comes from the passes of :func:`~foldfab.estimate.plan_speeds` over the
+    Its exit speed comes from the passes of :func:`~foldfab.programs.estimate.plan_speeds` over the
     planned blocks behind it, up to the first block that starts at rest or the end of the
     buffer, where the machine must be able to stop (as GRBL plans).
     """

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.interpret import Stroke
+    from foldfab.programs.interpret import Stroke
     from foldfab.sim.device import Simulator
 
 
@@ -131,7 +131,7 @@ def recording_svg(sim: Simulator) -> str:
     the layer whose tool drew it (:func:`layer_named`)."""
     from dataclasses import replace
 
-    from foldfab.preview import render_preview
+    from foldfab.programs.preview import render_preview
 
     run = sim.interpretation()
     return render_preview(replace(run, strokes=layer_named(run.strokes, sim.device)), sim.device, sim.sheet)
@@ -144,8 +144,8 @@ def layer_named(strokes: list[Stroke], device: DeviceProfile) -> list[Stroke]:
     layer's tool drew keeps its "pen N" name (grey)."""
     from dataclasses import replace
 
-    from foldfab.program import Section
-    from foldfab.plan import Tool
+    from foldfab.programs.program import Section
+    from foldfab.fabrication.plan import Tool
 
     by_tool: dict[tuple, list[str]] = {}
     for name, layer in device.layers.items():

@@ -327,7 +327,7 @@ class Studio:
 
     def _fit(self, design, device_name: str) -> dict | None:
         """Does the design fit the device's sheet (the job's [fabrication] settings)?"""
-        from foldfab.fabrication import parse_fabrication, place
+        from foldfab.fabrication.spec import parse_fabrication, place
 
         if not device_name:
             return None
@@ -349,7 +349,7 @@ class Studio:
         """The session: the first job, its path, the devices and whether the queue is there."""
         from foldfab.devices import list_devices
         from foldfab.job import job_data, load_job
-        from foldfab.queue import default_queue_path
+        from foldfab.queue.store import default_queue_path
 
         path = self.job_path or self.start_dir / "untitled.toml"
         job = job_data(load_job(path)) if self.job_path and self.job_path.is_file() else \
@@ -428,7 +428,7 @@ class Studio:
 
     def export(self, request: dict) -> dict:
         """Write the crease pattern or model: FOLD, SVG, ORIPA .cp or a mesh, by the file's suffix."""
-        from foldfab.output import SUFFIX_KINDS, kind_of, write_design_files
+        from foldfab.formats.output import SUFFIX_KINDS, kind_of, write_design_files
 
         design = self._build(request)
         with self._write_lock:
@@ -441,7 +441,7 @@ class Studio:
         return {"written": str(target), "kind": kind}
 
     def _fabricate(self, request: dict):
-        from foldfab.fabrication import fabricate
+        from foldfab.fabrication.spec import fabricate
 
         device_name = _field(request, "device", str, "")
         design = self._build(request)
@@ -450,8 +450,8 @@ class Studio:
 
     def preview(self, request: dict) -> dict:
         """The dry run: the program read back and drawn as the device would move."""
-        from foldfab.interpret import interpret
-        from foldfab.preview import render_preview
+        from foldfab.programs.interpret import interpret
+        from foldfab.programs.preview import render_preview
 
         design, device, fab = self._fabricate(request)
         svg = render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan)
@@ -460,7 +460,7 @@ class Studio:
 
     def queue(self, request: dict) -> dict:
         """Build the program now and add a snapshot of it to the plot queue."""
-        from foldfab.queue import MAX_COPIES, PRIORITIES, NewJob, SqliteQueueStore, default_queue_path, make_snapshot
+        from foldfab.queue.store import MAX_COPIES, PRIORITIES, NewJob, SqliteQueueStore, default_queue_path, make_snapshot
 
         design, device, fab = self._fabricate(request)
         port = _field(request, "port", str, "") or device.port

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from foldfab.errors import DesignError
-from foldfab.reflection import Reflection
+from foldfab.geometry.reflection import Reflection
 
 BORDER, MOUNTAIN, VALLEY, FLAT = "B", "M", "V", "F"
 FLAT_FOLD_TOL = 1e-6  # degrees: a fold closer than this to 180 has no defined direction

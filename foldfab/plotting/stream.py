@@ -2,7 +2,7 @@
 
 Plotters have small receive buffers: a sender that writes faster than the plotter
 draws overruns the buffer and commands are lost silently.  :func:`stream` sends a
-:class:`~foldfab.program.Program` over an open pyserial port with the handshake the
+:class:`~foldfab.programs.program.Program` over an open pyserial port with the handshake the
 device profile's ``[buffer] flow_control`` names.
 
 HP-GL (:class:`_HPGLSender`) sends whole commands (``;``-terminated) and never sends
@@ -90,8 +90,8 @@ from foldfab.errors import FoldfabError
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.progress import JobProgress, ProgressEvent
-    from foldfab.program import Program
+    from foldfab.plotting.progress import JobProgress, ProgressEvent
+    from foldfab.programs.program import Program
 
 POLL = 0.05
 """Seconds a blocking read waits before the sender looks at the cancel event again."""
@@ -239,7 +239,7 @@ def stream(port, program: Program, device: DeviceProfile, *,
            note: str = "") -> StreamResult:
     """Send ``program`` to the plotter on ``port`` (open, with the profile's settings).
 
-    ``events`` receives :class:`~foldfab.progress.ProgressEvent` objects; setting
+    ``events`` receives :class:`~foldfab.plotting.progress.ProgressEvent` objects; setting
     ``cancel`` (or a KeyboardInterrupt) stops the job safely; ``operator`` answers the
     program's pauses (without one, a pause stops the job).  ``stall_timeout``: seconds
     without a sign of progress, beyond the time the estimate expects the plotter to
@@ -279,7 +279,7 @@ def locate_pen(port, device: DeviceProfile, timeout: float = 10.0) -> PenPositio
     when reset at rest) and the status report gives the position; a Z tool stays where it
     was, a servo pen's state is lost with the reset (None).
     """
-    from foldfab.program import Program
+    from foldfab.programs.program import Program
 
     empty = Program("", device.protocol, device.name, (), ())
     sender = _GrblSender if device.protocol == "gcode" else _HPGLSender
@@ -306,7 +306,7 @@ class _Sender:
     """What both protocols share: events, timing, replies, stopping."""
 
     def __init__(self, port, program, device, events, cancel, operator, stall_timeout, progress):
-        from foldfab.progress import JobProgress
+        from foldfab.plotting.progress import JobProgress
 
         self.port, self.program, self.device = port, program, device
         self.data = program.encode()
@@ -518,7 +518,7 @@ class _HPGLSender(_Sender):
         self.failed_mark: int | None = None  # what a marker answered instead of 0 (None: garbled)
         self.ends = [i + 1 for i, byte in enumerate(self.data) if byte == ord(";")]
         self.check_instructions()
-        from foldfab.interpret import pen_states
+        from foldfab.programs.interpret import pen_states
 
         first_move = re.search(rb"P[UDA][-+\d][^;]*;", self.data)
         self.known_from = first_move.end() if first_move else len(self.data) + 1
@@ -732,7 +732,7 @@ class _HPGLSender(_Sender):
     def repeated_states(self) -> tuple[list[int], list[int]]:
         """The steps of the program that leave the pen (position, up or down) where an earlier
         step left it: their end offsets, and the end offset of that earlier step."""
-        from foldfab.interpret import pen_states
+        from foldfab.programs.interpret import pen_states
 
         last: dict[tuple[int, int, bool], int] = {}
         ends, before = [], []
@@ -747,7 +747,7 @@ class _HPGLSender(_Sender):
     def repeats_allow(self) -> int:
         """How far the sender may go before the next step whose pen state repeats one the
         pen locator's window may still hold (from the end of the last acknowledged stroke,
-        see :func:`foldfab.resume.first_undrawn`).  A repeat that only acknowledging strokes
+        see :func:`foldfab.plotting.resume.first_undrawn`).  A repeat that only acknowledging strokes
         not yet sent could clear (within a stroke of the earlier one) is let through: there
         the locator takes the earlier state, never a later one."""
         ends = self.progress.ends
@@ -1029,7 +1029,7 @@ class _GrblSender(_Sender):
 
     def split(self) -> list[_Line]:
         """The program's lines with their byte ranges and what GRBL does with them."""
-        from foldfab.interpret import read_gcode_line
+        from foldfab.programs.interpret import read_gcode_line
 
         lines, start = [], 0
         text = self.program.text
@@ -1213,7 +1213,7 @@ class _GrblSender(_Sender):
                 self.next_report()
             if self.state == "Alarm" or self.machine_position is None:
                 return None
-            from foldfab.interpret import GcodeMachine
+            from foldfab.programs.interpret import GcodeMachine
 
             x, y, z = self.work_position()
             machine = GcodeMachine(self.device, self.device.frame(self.device.sheet), None)
@@ -1250,7 +1250,7 @@ class _GrblSender(_Sender):
     def check_position(self, index: int, offset: int) -> None:
         """At rest after program line ``index``: the status report's position must be the
         program's (by the interpreter), else a fault; ``offset`` is then verified."""
-        from foldfab.interpret import GcodeMachine, read_gcode_line
+        from foldfab.programs.interpret import GcodeMachine, read_gcode_line
 
         if not self.lines_ or self.machine_position is None:
             return
@@ -1309,7 +1309,7 @@ class _GrblSender(_Sender):
             note = ("GRBL raised an alarm at the reset and was unlocked ($X) to lift the tool; "
                     "home it before resuming if its position may be lost")
         for raw in self.program.text[:self.program.sections[0].offset].split("\n"):
-            from foldfab.interpret import read_gcode_line
+            from foldfab.programs.interpret import read_gcode_line
 
             if read_gcode_line(raw).words:
                 self.send_line(raw.encode("ascii") + b"\n")
@@ -1330,7 +1330,7 @@ class _GrblSender(_Sender):
     def refine_acked(self) -> None:
         """After a hold: the first answered line whose move passes through the held position
         is the one that was executing; every line before it was executed."""
-        from foldfab.interpret import GcodeMachine, read_gcode_line
+        from foldfab.programs.interpret import GcodeMachine, read_gcode_line
 
         held = self.work_position()
         first = next((i for i, line in enumerate(self.lines_) if line.end > self.acked), None)

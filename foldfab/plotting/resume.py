@@ -62,10 +62,10 @@ from foldfab.xdg import foldfab_dir
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.interpret import Stroke
-    from foldfab.progress import ProgressEvent
-    from foldfab.program import Program
-    from foldfab.stream import PenPosition, StreamResult, StreamStopped
+    from foldfab.programs.interpret import Stroke
+    from foldfab.plotting.progress import ProgressEvent
+    from foldfab.programs.program import Program
+    from foldfab.plotting.stream import PenPosition, StreamResult, StreamStopped
 
 STATE_VERSION = 1
 TOKEN_PATTERN = re.compile(r"[0-9a-f]{6,32}")
@@ -247,8 +247,8 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
     Strokes of the result are ``interpret(program).strokes[stroke:]``, in order, with the
     same tool, force and speed.
     """
-    from foldfab.interpret import interpret
-    from foldfab.program import PauseMark, Program
+    from foldfab.programs.interpret import interpret
+    from foldfab.programs.program import PauseMark, Program
 
     strokes = interpret(program, device).strokes
     if not 0 <= stroke < len(strokes):
@@ -290,7 +290,7 @@ def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke]
     None if no state matches (the plotter did not run this program: its position says
     nothing).
     """
-    from foldfab.interpret import pen_states
+    from foldfab.programs.interpret import pen_states
 
     start = strokes[stroke - 1].end if stroke > 0 else 0
     tolerance = _tolerance(program)
@@ -339,16 +339,16 @@ def locate(program: Program, device: DeviceProfile, port: str, stroke: int, paus
            strokes: list[Stroke] | None = None, **settings) -> Location:
     """Where to resume: ``stroke`` (the first not acknowledged), moved on past the strokes
     the plotter drew after its host lost it, as far as asking the plotter can tell
-    (:func:`foldfab.stream.locate_pen`, :func:`first_undrawn`).  ``strokes``: the program's,
-    where the caller has them already; ``settings`` are :func:`foldfab.transport.open_port`'s.
+    (:func:`foldfab.plotting.stream.locate_pen`, :func:`first_undrawn`).  ``strokes``: the program's,
+    where the caller has them already; ``settings`` are :func:`foldfab.plotting.transport.open_port`'s.
 
     A position is doubtful proof (:attr:`Location.doubt`) when it is also the power-on
     state (a board switched off and on that does not greet on opening looks exactly like
     one that parked there) or when it places the resume at the end of the program while
     strokes are unacknowledged."""
-    from foldfab.interpret import interpret
-    from foldfab.stream import CHECK_EVERY, locate_pen
-    from foldfab.transport import open_port
+    from foldfab.programs.interpret import interpret
+    from foldfab.plotting.stream import CHECK_EVERY, locate_pen
+    from foldfab.plotting.transport import open_port
 
     strokes = interpret(program, device).strokes if strokes is None else strokes
     here = partial(Location, stroke, stroke, len(strokes))
@@ -406,7 +406,7 @@ def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
     """Commands restoring the tool state ``program`` has set by byte ``offset``."""
     text = program.text[:offset]
     if program.protocol == "hpgl":
-        from foldfab.interpret import HPGLTokenizer
+        from foldfab.programs.interpret import HPGLTokenizer
 
         tokenizer = HPGLTokenizer()
         commands = tokenizer.feed(text.encode("latin-1")) + tokenizer.close()
@@ -420,8 +420,8 @@ def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
                 latest.pop(key, None)
                 latest[key] = text[command.offset:end]
         return "".join(latest.values())
-    from foldfab.interpret import pen_states
-    from foldfab.program import fmt_number
+    from foldfab.programs.interpret import pen_states
+    from foldfab.programs.program import fmt_number
 
     for _, machine in pen_states(text, "gcode", device):
         pass  # to the end of the text: the modes in force there
@@ -434,7 +434,7 @@ def _travel(device: DeviceProfile, point, protocol: str) -> str:
     """A pen-up move to ``point`` (sheet mm) in device coordinates."""
     import numpy as np
 
-    from foldfab.program import fmt_number
+    from foldfab.programs.program import fmt_number
 
     x, y = device.frame(device.sheet).to_device(np.asarray([point]))[0].tolist()
     if protocol == "hpgl":
@@ -491,10 +491,10 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
     :class:`ResumeAmbiguous` is raised.  A plot that stops early saves (or updates) its
     state and raises :class:`PlotStopped`.
     """
-    from foldfab.interpret import interpret
-    from foldfab.progress import JobProgress
-    from foldfab.stream import StreamStopped, stream
-    from foldfab.transport import open_port
+    from foldfab.programs.interpret import interpret
+    from foldfab.plotting.progress import JobProgress
+    from foldfab.plotting.stream import StreamStopped, stream
+    from foldfab.plotting.transport import open_port
 
     if from_stroke is not None and resume is None:
         raise FoldfabError("--from-stroke chooses where a stopped plot resumes: give --resume TOKEN too")
@@ -506,7 +506,7 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
         check_state(state, program, job, device, strokes)
         first, found = _start(state, program, device, port, strokes, from_stroke, choose, settings)
         if first >= len(strokes):  # the operator says the plotter drew the rest after its host lost it
-            from foldfab.stream import StreamResult
+            from foldfab.plotting.stream import StreamResult
 
             if events is not None:
                 end = len(program.text)

@@ -1,17 +1,17 @@
 """The queue worker: claim a job, plot it through the streaming engine, keep the queue true.
 
-:class:`Worker` takes jobs from a :class:`~foldfab.queue.QueueStore` in claim order and
+:class:`Worker` takes jobs from a :class:`~foldfab.queue.store.QueueStore` in claim order and
 plots each one with a :data:`Runner` (by default :func:`stream_runner`: the port is
-opened and :func:`foldfab.stream.stream` sends the program).  While a job runs, a
+opened and :func:`foldfab.plotting.stream.stream` sends the program).  While a job runs, a
 heartbeat thread renews the worker's lease and persists the acknowledged position
 whenever a stroke has been completed, at least every ``heartbeat`` seconds; it also
 picks up cancel requests (the engine then stops the plotter safely) and notices when
 the job is no longer this worker's (the plotter is stopped at once).
 
 A job that was interrupted before (its worker died, the cable was pulled) is resumed
-with :func:`foldfab.resume.resume_program` from the first stroke not drawn: the first
+with :func:`foldfab.plotting.resume.resume_program` from the first stroke not drawn: the first
 not acknowledged, moved on past those the plotter says it drew after its worker lost
-it (:func:`foldfab.resume.locate_resume`).  No stroke is lost; drawn twice is the
+it (:func:`foldfab.plotting.resume.locate_resume`).  No stroke is lost; drawn twice is the
 interrupted stroke (on a GRBL board that resets when its port opens, also the lines it
 still held when the worker died: better twice than lost).  Pauses (the flip of a
 two-sided job) set the job ``waiting``; the :class:`WorkerUI` may answer on a terminal,
@@ -42,14 +42,14 @@ from functools import partial
 from typing import TYPE_CHECKING, Callable, Protocol
 
 from foldfab.errors import FoldfabError
-from foldfab.queue import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, QueueBusy,
+from foldfab.queue.store import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, QueueBusy,
                            QueueStore, WorkerId, load_snapshot_device)
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.progress import ProgressEvent
-    from foldfab.program import Program
-    from foldfab.stream import StreamStopped
+    from foldfab.plotting.progress import ProgressEvent
+    from foldfab.programs.program import Program
+    from foldfab.plotting.stream import StreamStopped
 
 MODES = ("until-empty", "once", "follow")
 DRY_RUN_PORT = "sim://?time=instant"
@@ -62,7 +62,7 @@ class PortUnavailable(FoldfabError):
 
 class Runner(Protocol):
     """Plots ``program`` on ``port``; returns when it is done, raises
-    :class:`foldfab.stream.StreamStopped` when it stopped early and :class:`PortUnavailable`
+    :class:`foldfab.plotting.stream.StreamStopped` when it stopped early and :class:`PortUnavailable`
     when it could not start."""
 
     def __call__(self, program: Program, device: DeviceProfile, port: str, *,
@@ -74,8 +74,8 @@ def stream_runner(program: Program, device: DeviceProfile, port: str, *,
                   events: Callable[[ProgressEvent], None], cancel: threading.Event,
                   operator: Callable[[str], bool]) -> None:
     """Open ``port`` with the device's serial settings and stream ``program`` to it."""
-    from foldfab.stream import stream
-    from foldfab.transport import open_port
+    from foldfab.plotting.stream import stream
+    from foldfab.plotting.transport import open_port
 
     try:
         link = open_port(port, device)
@@ -184,8 +184,8 @@ def start_point(program: Program, device: DeviceProfile, acked: int, pauses_done
     moved on by ``locate`` (``(stroke) -> (stroke, note)``: what the plotter drew since)."""
     if not acked:
         return StartPoint(program, "started", tuple(range(1, len(program.pauses) + 1)))
-    from foldfab.interpret import interpret
-    from foldfab.resume import resume_program
+    from foldfab.programs.interpret import interpret
+    from foldfab.plotting.resume import resume_program
 
     strokes = interpret(program, device).strokes
     stroke = bisect.bisect_right([s.end for s in strokes], acked)
@@ -276,7 +276,7 @@ class Worker:
     def __init__(self, store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOptions(),
                  runner: Runner = stream_runner, locate: bool = True):
         """``locate``: before resuming a job, ask its plotter how far it got
-        (:func:`foldfab.resume.locate_resume`)."""
+        (:func:`foldfab.plotting.resume.locate_resume`)."""
         if options.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
         if not options.heartbeat > 0 or not options.lease >= LEASE_HEARTBEATS * options.heartbeat:
@@ -344,7 +344,7 @@ class Worker:
         try:
             device = load_snapshot_device(claim.snapshot)
             program = claim.snapshot.program
-            from foldfab.resume import locate_resume
+            from foldfab.plotting.resume import locate_resume
 
             locate = partial(locate_resume, program, device, job.port, pauses_done=job.pauses_done)
             start = start_point(program, device, job.acked_bytes, job.pauses_done,
@@ -366,7 +366,7 @@ class Worker:
         except PortUnavailable as exc:
             return self._end(job, heartbeat, "interrupted", f"{exc}; then run again", tracker.acked)
         except FoldfabError as exc:
-            from foldfab.stream import StreamStopped
+            from foldfab.plotting.stream import StreamStopped
 
             if not isinstance(exc, StreamStopped):
                 return self._end(job, heartbeat, "failed", str(exc), tracker.acked)
@@ -429,7 +429,7 @@ def rehearse(store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOpt
 
 def _rehearse_job(store: QueueStore, ui: WorkerUI, job: JobRecord, runner: Runner) -> str:
     """Rehearse one job (see :func:`rehearse`); the state it would end in."""
-    from foldfab.stream import StreamStopped
+    from foldfab.plotting.stream import StreamStopped
 
     try:
         snapshot = store.snapshot(job.id)
@@ -469,7 +469,7 @@ class _Tracker:
     def event(self, event: ProgressEvent) -> None:
         """Record the position; when a stroke was completed, save it before the engine goes on
         (it lets the plotter hold repeats of a pen state only past the reported stroke, so the
-        saved one must not lag: see :meth:`foldfab.stream._HPGLSender.repeats_allow`)."""
+        saved one must not lag: see :meth:`foldfab.plotting.stream._HPGLSender.repeats_allow`)."""
         self.acked = self.start.original(event.acknowledged)
         done, self.total = self.start.stroke + event.strokes_done, self.start.stroke + event.strokes_total
         self.heartbeat.acked = self.acked

@@ -19,7 +19,7 @@ import itertools
 
 import numpy as np
 
-from foldfab.plan import Pause, PlotPlan, device_steps
+from foldfab.fabrication.plan import Pause, PlotPlan, device_steps
 
 METHODS = ("none", "greedy", "two-opt")
 
@@ -32,7 +32,7 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
     ``start`` is where the pen is before the first layer and after every pause (the
     device's park position); layers named in ``keep_vertices`` are not simplified (their
     vertices matter, e.g. crease ends that perforation must spare); ``tool_changer`` false
-    means the device also stops to change tools (:func:`foldfab.plan.device_steps`).
+    means the device also stops to change tools (:func:`foldfab.fabrication.plan.device_steps`).
     """
     if method == "none":
         return plan
@@ -314,7 +314,7 @@ def _reloop(lines: list[np.ndarray], pen: complex, tolerance: float, onward: _On
 def travel(plan: PlotPlan, park: complex = 0j, tool_changer: bool = True) -> dict:
     """Pen-up travel in mm: per layer (inside it, all passes), between layers, to the park
     position and back at pauses (``tool_changer`` false: tool changes too, see
-    :func:`foldfab.plan.device_steps`) and from and to ``park`` at the start and end."""
+    :func:`foldfab.fabrication.plan.device_steps`) and from and to ``park`` at the start and end."""
     per_layer: dict[str, float] = {}
     between = 0.0
     pen, parked = park, True

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from foldfab.crease_pattern import CreasePattern
+from foldfab.geometry.crease_pattern import CreasePattern
 
 
 GLTF_FROM_FOLDFAB = np.array([[0.001, 0.0, 0.0, 0.0],

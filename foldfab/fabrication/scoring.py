@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from foldfab.crease_pattern import CreasePattern
+from foldfab.geometry.crease_pattern import CreasePattern
 
 
 def crease_lines(cp: CreasePattern, kind: str, points: np.ndarray | None = None) -> list[np.ndarray]:

@@ -3,7 +3,7 @@
 :func:`interpret` turns an HPGL or G-code program into an :class:`Interpretation`:
 pen-down strokes in sheet millimetres with the tool state the program set, pen-up
 travel moves (including the first one from the park position, where the last job
-left the pen, and the last one back to it), and pauses.  Given a :class:`~foldfab.program.Program` rather
+left the pen, and the last one back to it), and pauses.  Given a :class:`~foldfab.programs.program.Program` rather
 than bare text, strokes are also labelled with their plan step, layer and
 repetition, and HPGL pauses (which exist only as offsets) are placed.
 
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import DeviceProfile, Frame
-    from foldfab.program import PauseMark, Program, Section
+    from foldfab.programs.program import PauseMark, Program, Section
 
 ESC, ETX = 0x1B, 0x03
 ESC_WITH_PARAMETERS = b"@HIMNT"  # ESC . x <parameters> :   (the others take none)
@@ -332,7 +332,7 @@ def interpret(program: Program | str, device: DeviceProfile,
 
     ``sheet`` (w, h mm) fixes the sheet-to-device mapping; default: the profile's sheet.
     """
-    from foldfab.program import Program
+    from foldfab.programs.program import Program
 
     frame = device.frame(sheet or device.sheet)
     text = program.text if isinstance(program, Program) else program

@@ -47,12 +47,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Iterator, Protocol, Sequence
 
 from foldfab.errors import FoldfabError
-from foldfab.progress import done_share
+from foldfab.plotting.progress import done_share
 from foldfab.xdg import foldfab_dir
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.program import Program
+    from foldfab.programs.program import Program
 
 STATES = ("queued", "running", "waiting", "done", "failed", "cancelled", "interrupted")
 ACTIVE = ("running", "waiting")
@@ -98,7 +98,7 @@ class Snapshot:
     @property
     def sha256(self) -> str:
         """SHA-256 of the program text."""
-        from foldfab.resume import program_hash
+        from foldfab.plotting.resume import program_hash
 
         return program_hash(self.program)
 
@@ -220,8 +220,8 @@ def _program_meta(program: Program) -> str:
 
 
 def _program_from(text: str, meta: str) -> Program:
-    from foldfab.plan import Tool
-    from foldfab.program import PauseMark, Program, Section
+    from foldfab.fabrication.plan import Tool
+    from foldfab.programs.program import PauseMark, Program, Section
 
     data = json.loads(meta)
     return Program(text, data["protocol"], data["device"],
@@ -252,7 +252,7 @@ def load_snapshot_device(snapshot: Snapshot) -> DeviceProfile:
 def drawn_length(snapshot: Snapshot) -> float:
     """mm the snapshot's program draws in all: known when it is queued, so a queued job's
     ``drawn_total_mm`` is its length before any worker has run it."""
-    from foldfab.interpret import interpret
+    from foldfab.programs.interpret import interpret
 
     return sum(stroke.length for stroke in interpret(snapshot.program, load_snapshot_device(snapshot)).strokes)
 

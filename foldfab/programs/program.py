@@ -15,7 +15,7 @@ offsets) together with two lists a streaming sender and the interpreters need:
 Both writers share :func:`sweeps`, which validates the plan against the device,
 converts coordinates, refuses designs outside the reachable area (never crops),
 expands ``passes`` and inserts tool-change pauses for devices without a pen changer
-(:func:`foldfab.plan.device_steps`).
+(:func:`foldfab.fabrication.plan.device_steps`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from operator import attrgetter
 from typing import TYPE_CHECKING, Union
 
 from foldfab.errors import FoldfabError
-from foldfab.plan import Pass, Pause, PlotPlan, Tool, device_steps
+from foldfab.fabrication.plan import Pass, Pause, PlotPlan, Tool, device_steps
 
 if TYPE_CHECKING:
     import numpy as np
@@ -98,10 +98,10 @@ class Stop:
 def write_program(plan: PlotPlan, device: DeviceProfile) -> Program:
     """Write ``plan`` in the device's language (HPGL or G-code)."""
     if device.protocol == "hpgl":
-        from foldfab.hpgl import write_hpgl
+        from foldfab.programs.hpgl import write_hpgl
 
         return write_hpgl(plan, device)
-    from foldfab.gcode import write_gcode
+    from foldfab.programs.gcode import write_gcode
 
     return write_gcode(plan, device)
 

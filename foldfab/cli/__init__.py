@@ -17,7 +17,7 @@ def _design_outputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
     outputs = [(kind, Path(path)) for kind, path in
                (("fold", args.fold), ("svg", args.svg), ("cp", args.cp), ("mesh", args.mesh)) if path]
     from foldfab.errors import FoldfabError
-    from foldfab.output import MESH_SUFFIXES
+    from foldfab.formats.output import MESH_SUFFIXES
 
     for kind, path in outputs:
         if kind == "mesh" and path.suffix.lower() not in MESH_SUFFIXES:
@@ -29,7 +29,7 @@ def _design_outputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
 def cmd_design(args: argparse.Namespace) -> int:
     """Build a design; print its summary and write the requested files."""
     from foldfab.design import load_design, summary
-    from foldfab.output import write_design_files
+    from foldfab.formats.output import write_design_files
 
     outputs = _design_outputs(args)
     design = load_design(args.job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)
@@ -76,7 +76,7 @@ def _fabricate(args: argparse.Namespace):
     """Design, device profile and fabrication of the command's job."""
     from foldfab.design import load_design
     from foldfab.devices import load_device
-    from foldfab.fabrication import fabricate
+    from foldfab.fabrication.spec import fabricate
 
     device = load_device(args.device)
     design = load_design(args.job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)
@@ -107,8 +107,8 @@ def _check_folder(path: Path, option: str) -> None:
 
 def fabrication_report(fab, device) -> dict:
     """Per-layer lengths, travel before/after optimization and the time estimate of a fabrication."""
-    from foldfab.estimate import estimate
-    from foldfab.interpret import interpret
+    from foldfab.programs.estimate import estimate
+    from foldfab.programs.interpret import interpret
 
     run = interpret(fab.program, device, fab.plan.sheet)
     times = estimate(run, device)
@@ -137,7 +137,7 @@ def fabrication_report(fab, device) -> dict:
 
 def format_report(info: dict) -> str:
     """Human-readable fabrication report."""
-    from foldfab.fabrication import placement_text
+    from foldfab.fabrication.spec import placement_text
 
     lines = [f"device       {info['device']}  strategy {info['strategy']}  sheet {info['sheet_mm'][0]:g} x {info['sheet_mm'][1]:g} mm",
              f"placement    {placement_text(info['scale'], info['scale_fitted'], info['rotated'])}"]
@@ -249,7 +249,7 @@ class _NotStarted(Exception):
 
 def _chooser(args: argparse.Namespace, prompting: list[bool]):
     """Asks, on a terminal (not with --json), where a resume starts when the plotter's position is
-    doubtful proof (:class:`foldfab.resume.Location`); None elsewhere: the resume then stops."""
+    doubtful proof (:class:`foldfab.plotting.resume.Location`); None elsewhere: the resume then stops."""
     if args.json or not sys.stdin.isatty():
         return None
 
@@ -318,8 +318,8 @@ def _plot(args: argparse.Namespace, cancel, sending: list[bool], prompting: list
     import shlex
 
     from foldfab.errors import FoldfabError
-    from foldfab.progress import reporter
-    from foldfab.resume import PlotStopped, ResumeAmbiguous, ResumeNotStarted, plot
+    from foldfab.plotting.progress import reporter
+    from foldfab.plotting.resume import PlotStopped, ResumeAmbiguous, ResumeNotStarted, plot
 
     def checkpoint() -> None:
         if cancel.is_set():
@@ -391,7 +391,7 @@ def _plot(args: argparse.Namespace, cancel, sending: list[bool], prompting: list
         chosen = ["--from-stroke", str(args.from_stroke)] if args.from_stroke else []  # (a stop saves a new state)
         raise FoldfabError(f"{exc}; nothing was sent, and the resume token stays valid: "
                            f"{shlex.join(_resume_command(args, port, exc.token) + chosen)}") from None
-    from foldfab.progress import plot_summary
+    from foldfab.plotting.progress import plot_summary
 
     summary = plot_summary(seen.get("start"), seen["last"], result.waited)
     print(json.dumps({"event": "summary", **summary}) if args.json else format_plot_summary(summary), flush=True)
@@ -451,8 +451,8 @@ def _resume_command(args: argparse.Namespace, port: str, token: str) -> list[str
 def _write_preview(fab, device, output: Path) -> None:
     """The dry-run SVG of a fabrication (``foldfab preview``, ``foldfab plot --preview``)."""
     from foldfab.atomic import write_text
-    from foldfab.interpret import interpret
-    from foldfab.preview import render_preview
+    from foldfab.programs.interpret import interpret
+    from foldfab.programs.preview import render_preview
 
     write_text(output, render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan,
                                       notes=[fab.placement_summary]))
@@ -492,7 +492,7 @@ def _add_plot_parser(sub) -> None:
 
 
 def _queue_store(args: argparse.Namespace):
-    from foldfab.queue import SqliteQueueStore, default_queue_path
+    from foldfab.queue.store import SqliteQueueStore, default_queue_path
 
     return SqliteQueueStore(args.queue or default_queue_path(), wait=args.wait)
 
@@ -506,7 +506,7 @@ def _when(seconds: float) -> str:
 def cmd_queue_add(args: argparse.Namespace) -> int:
     """Build every job now (a bad job fails here, nothing is added) and queue the snapshots."""
     from foldfab.errors import FoldfabError
-    from foldfab.queue import NewJob, make_snapshot
+    from foldfab.queue.store import NewJob, make_snapshot
 
     new = []
     for job in args.jobs:
@@ -632,7 +632,7 @@ class QueueConsole:
     dry run answers pauses itself, so nothing is asked."""
 
     def __init__(self, rehearsal: bool = False):
-        from foldfab.progress import reporter
+        from foldfab.plotting.progress import reporter
 
         self.report = reporter(sys.stdout)
         self.terminal = sys.stdin.isatty()
@@ -692,7 +692,7 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
     previous = {sig: signal.signal(sig, interrupt) for sig in stops}
     try:
         from foldfab.errors import FoldfabError
-        from foldfab.worker import Worker, WorkerOptions, rehearse
+        from foldfab.queue.worker import Worker, WorkerOptions, rehearse
 
         options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
         store, console = _queue_store(args), QueueConsole(rehearsal=args.dry_run)
@@ -728,7 +728,7 @@ def _positive_int(text: str) -> int:
 def _token(text: str) -> str:
     """An argparse type: a resume token, not empty (``--resume "$TOKEN"`` with TOKEN unset must not
     plot the whole job again)."""
-    from foldfab.resume import TOKEN_PATTERN
+    from foldfab.plotting.resume import TOKEN_PATTERN
 
     if not TOKEN_PATTERN.fullmatch(text):
         raise argparse.ArgumentTypeError("expected the resume token foldfab printed when the plot stopped "
@@ -774,7 +774,7 @@ def _port(text: str) -> str:
 
 def _add_queue_parser(sub) -> None:
     """``foldfab queue ...``: the persistent job queue."""
-    from foldfab.queue import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, DEFAULT_WAIT, LEASE_HEARTBEATS, MAX_COPIES,
+    from foldfab.queue.store import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, DEFAULT_WAIT, LEASE_HEARTBEATS, MAX_COPIES,
                                MAX_JOB_ID, MIN_LEASE, PRIORITIES, STATES)
 
     job_id = _int_from(1, MAX_JOB_ID, "expected a job id")

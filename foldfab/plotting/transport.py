@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 
     from foldfab.devices import DeviceProfile
 
-HANDLER_PACKAGE = "foldfab.urlhandler"
+HANDLER_PACKAGE = "foldfab.plotting.urlhandler"
 DEFAULT_TIMEOUT = 1.0
 """Seconds a read waits by default: a plotter that does not answer must not hang foldfab."""
 

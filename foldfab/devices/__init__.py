@@ -55,7 +55,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from foldfab.errors import FoldfabError, unknown_key
-from foldfab.plan import Tool
+from foldfab.fabrication.plan import Tool
 from foldfab.xdg import foldfab_dir
 
 GCODE_DECIMALS = 3
@@ -141,7 +141,7 @@ class Motion:
     """GRBL's ``$11`` (mm): corners are planned with junction speeds; None: taken from rest."""
     axis_limits: bool = False
     """``travel_speed`` and ``acceleration`` limit each axis (GRBL's ``$110``/``$111``,
-    ``$120``/``$121``), not the head's path: see :func:`foldfab.estimate.axis_factors`."""
+    ``$120``/``$121``), not the head's path: see :func:`foldfab.programs.estimate.axis_factors`."""
 
 
 @dataclass(frozen=True)
@@ -352,7 +352,7 @@ def _user_dir() -> Path:
 
 def _builtin_dir() -> Path:
     """``foldfab/builtin_devices`` when installed, the repository's ``devices/`` in a checkout."""
-    here = Path(__file__).resolve().parent
+    here = Path(__file__).resolve().parent.parent  # foldfab/
     installed = here / "builtin_devices"
     return installed if installed.is_dir() else here.parent / "devices"
 

@@ -26,11 +26,11 @@ import numpy as np
 
 from foldfab.devices import GCODE_DECIMALS
 from foldfab.errors import FoldfabError
-from foldfab.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps
+from foldfab.programs.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.plan import PlotPlan
+    from foldfab.fabrication.plan import PlotPlan
 
 MAX_LINE = 79  # characters before "\n": GRBL 1.1 holds 80 including the terminator
 

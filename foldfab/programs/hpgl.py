@@ -7,7 +7,7 @@ device's buffer allows (:attr:`~foldfab.devices.BufferSettings.instruction_limit
 sender can only ever send whole instructions, and one that never fits deadlocks it);
 at a pause and at the end the pen is lifted, moved to the park position and put
 away (``PU x,y;SP0;``).  HPGL has no pause command: pauses are byte offsets in
-:attr:`Program.pauses` (see :mod:`foldfab.program`).  Speeds are sent as ``VS`` in
+:attr:`Program.pauses` (see :mod:`foldfab.programs.program`).  Speeds are sent as ``VS`` in
 cm/s (two decimals for ``hp``, whole cm/s for ``graphtec`` and ``roland``); forces as
 ``FS`` in the device's own unit (Graphtec force steps, Roland grams-force).
 
@@ -20,11 +20,11 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from foldfab.errors import FoldfabError
-from foldfab.program import Program, ProgramBuilder, Stop, fmt_number, sweeps
+from foldfab.programs.program import Program, ProgramBuilder, Stop, fmt_number, sweeps
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.plan import PlotPlan
+    from foldfab.fabrication.plan import PlotPlan
 
 SPEED_DECIMALS = {"hp": 2, "graphtec": 0, "roland": 0}
 

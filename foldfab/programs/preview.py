@@ -15,13 +15,13 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 from xml.sax.saxutils import escape, quoteattr
 
-from foldfab.estimate import estimate
-from foldfab.plan import PlotPlan
-from foldfab.program import fmt_number
+from foldfab.programs.estimate import estimate
+from foldfab.fabrication.plan import PlotPlan
+from foldfab.programs.program import fmt_number
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.interpret import Interpretation
+    from foldfab.programs.interpret import Interpretation
 
 COLORS = {"mountain": "#ff0000", "valley": "#0000ff", "cut": "#000000"}
 OTHER_COLOR = "#808080"

@@ -1,11 +1,11 @@
 """Job progress: what the plotter has done, in millimetres, layers and seconds.
 
-The streaming engines (:mod:`foldfab.stream`) know byte offsets: how much of the
+The streaming engines (:mod:`foldfab.plotting.stream`) know byte offsets: how much of the
 program the plotter has acknowledged (executed, counted conservatively).
 :class:`JobProgress` turns an offset into what a person wants to see: drawn length
 done out of the total (from the interpreted strokes and their byte offsets), the
 current layer (the program's sections), elapsed time, and an ETA from
-:mod:`foldfab.estimate`.
+:mod:`foldfab.programs.estimate`.
 
 Three reporters print :class:`ProgressEvent` objects: a one-line bar redrawn in place
 on a terminal, plain lines every few seconds when stdout is a file or a pipe, and
@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING, Callable, TextIO
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.interpret import Interpretation
-    from foldfab.program import Program
+    from foldfab.programs.interpret import Interpretation
+    from foldfab.programs.program import Program
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ class ProgressEvent:
     """Layer being drawn at the acknowledged offset ("setup" before the first one)."""
     elapsed: float
     """Seconds since the job started, on the clock the plotter runs on (a ``sim://`` simulator's
-    virtual clock, else the wall clock: :func:`foldfab.stream.plotter_clock`)."""
+    virtual clock, else the wall clock: :func:`foldfab.plotting.stream.plotter_clock`)."""
     eta: float
     """Seconds left on the same clock: the estimate of what remains, scaled by how fast the job
     has gone so far."""
@@ -78,8 +78,8 @@ class JobProgress:
     """Maps acknowledged byte offsets of ``program`` to drawn length, layer and ETA."""
 
     def __init__(self, program: Program, device: DeviceProfile, run: Interpretation | None = None):
-        from foldfab.estimate import estimate
-        from foldfab.interpret import Interpretation, interpret
+        from foldfab.programs.estimate import estimate
+        from foldfab.programs.interpret import Interpretation, interpret
 
         self.program = program
         run = run if run is not None else interpret(program, device)

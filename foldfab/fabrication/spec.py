@@ -21,7 +21,7 @@ from foldfab.devices import DeviceProfile, parse_sheet
 from foldfab.errors import FoldfabError
 from foldfab.job import TomlTable
 from foldfab.limits import MAX_STROKES
-from foldfab.plan import Pass, Pause, PlotPlan, Tool
+from foldfab.fabrication.plan import Pass, Pause, PlotPlan, Tool
 
 STRATEGIES = ("force", "perforate", "two-sided")
 LAYERS = {"valley": (1, "#0000ff"), "mountain": (2, "#ff0000"), "cut": (3, "#000000")}
@@ -63,7 +63,7 @@ PERFORATION_MAX = 1000.0
 
 def parse_fabrication(data: dict, source: str) -> FabricationSpec:
     """Validate a job's ``[fabrication]`` table; errors name the key."""
-    from foldfab.optimize import METHODS
+    from foldfab.fabrication.optimize import METHODS
 
     table = TomlTable(source, "fabrication", data, ("strategy", "sheet", "margin", "rotate", "scale", "optimize",
                                                     "flip_edge", "perforate", "layers", "max_strokes"))
@@ -128,7 +128,7 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
     ``spec.scale`` "fit" is the largest scale at which the design fits the sheet less its margin,
     within the device's reach (on both sides of a two-sided job's sheet), turned if that fits
     better: computed from the extents, then placed and checked like any given scale."""
-    from foldfab.placement import fit, largest_scale, usable
+    from foldfab.fabrication.placement import fit, largest_scale, usable
 
     sheet = spec.sheet or device.sheet
     area = device.frame(sheet).device_rect_on_sheet(*device.plottable_area)
@@ -226,8 +226,8 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
     each drawn with its tool of ``tools`` (:func:`layer_tools`)."""
     import vpype as vp
 
-    from foldfab import scoring
-    from foldfab.placement import mirror
+    from foldfab.fabrication import scoring
+    from foldfab.fabrication.placement import mirror
 
     cp = design.crease_pattern
     placed = placement.apply(scoring.vertex_points(cp))
@@ -256,7 +256,7 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
 def check_strokes(design: Design, spec: FabricationSpec, lines: dict[str, list[np.ndarray]]) -> None:
     """Refuse, before the plan is optimized or perforated, a program of more strokes than
     ``spec.max_strokes``: one per line, one per dash of a perforated crease."""
-    from foldfab import scoring
+    from foldfab.fabrication import scoring
 
     count = 0
     for name, layer in lines.items():
@@ -283,8 +283,8 @@ def finish_plan(layout: PlotPlan, device: DeviceProfile, spec: FabricationSpec,
     strategy, its creases cut into dashes.  ``layout`` itself is left as it is."""
     import vpype as vp
 
-    from foldfab import scoring
-    from foldfab.optimize import optimize_plan
+    from foldfab.fabrication import scoring
+    from foldfab.fabrication.optimize import optimize_plan
 
     park = park_position(device, layout.sheet)
     perforated = frozenset(("valley", "mountain")) if spec.strategy == "perforate" else frozenset()
@@ -313,9 +313,9 @@ class Fabrication:
     """A design made ready for one device: the plan, its program, and the travel it saves."""
 
     spec: FabricationSpec
-    placement: Any          # foldfab.placement.Placement: crease-pattern mm -> sheet mm (front side)
+    placement: Any          # foldfab.fabrication.placement.Placement: crease-pattern mm -> sheet mm (front side)
     plan: PlotPlan
-    program: Any            # foldfab.program.Program
+    program: Any            # foldfab.programs.program.Program
     design: Design
     device: DeviceProfile
     layout: PlotPlan        # the plan before optimization (for the travel it saves)
@@ -328,15 +328,15 @@ class Fabrication:
 
     @cached_property
     def travel_after(self) -> dict:
-        """Pen-up travel of the plan (:func:`foldfab.optimize.travel`)."""
-        from foldfab.optimize import travel
+        """Pen-up travel of the plan (:func:`foldfab.fabrication.optimize.travel`)."""
+        from foldfab.fabrication.optimize import travel
 
         return travel(self.plan, park_position(self.device, self.plan.sheet), self.device.tool_changer)
 
     @cached_property
     def travel_before(self) -> dict:
         """Pen-up travel of the same layers unoptimized (on demand: only reports need it)."""
-        from foldfab.optimize import travel
+        from foldfab.fabrication.optimize import travel
 
         if self.spec.optimize == "none":
             return self.travel_after
@@ -348,7 +348,7 @@ def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | Non
               scale: float | str | None = None) -> Fabrication:
     """Plan, optimize and write the program of ``design`` for ``device``; ``scale`` (a number
     or "fit", the command line's ``--scale``) replaces the job's ``[fabrication].scale``."""
-    from foldfab.program import write_program
+    from foldfab.programs.program import write_program
 
     if spec is None:
         spec = parse_fabrication(design.job.fabrication, str(design.job.path))

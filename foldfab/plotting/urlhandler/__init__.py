@@ -1,0 +1,1 @@
+"""pyserial URL handlers of foldfab (``sim://``); :mod:`foldfab.plotting.transport` registers them."""

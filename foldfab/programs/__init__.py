@@ -1,0 +1,6 @@
+"""Programs: a plot plan to a device's program text, and any program read back.
+
+Takes a :class:`~foldfab.fabrication.plan.PlotPlan` and gives a
+:class:`~foldfab.programs.program.Program` in the device's language (HP-GL, G-code); reads
+programs back into strokes (:mod:`~foldfab.programs.interpret`) for time estimates and previews.
+"""
