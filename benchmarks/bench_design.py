@@ -17,7 +17,8 @@ import numpy as np
 
 from foldfab.geometry import templates
 from foldfab.geometry.crease_pattern import build_crease_pattern
-from foldfab.geometry.model import find_penetrations, to_trimesh
+from foldfab.formats.mesh import to_trimesh
+from foldfab.geometry.penetration import find_penetrations
 from foldfab.geometry.reflection import reflect
 
 from warm_bytecode import cache_foldfab_bytecode

@@ -17,7 +17,9 @@ from pathlib import Path
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.programs.estimate import estimate, travel_times
-from foldfab.fabrication.spec import build_plan, fabricate, parse_fabrication, park_position
+from foldfab.fabricate import fabricate
+from foldfab.fabrication.layout import build_plan, park_position
+from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
 from foldfab.fabrication.optimize import travel
 from foldfab.fabrication.plan import PlotPlan

@@ -35,7 +35,7 @@ def fill(queue: Path, count: int) -> None:
     """``count`` jobs, each with its own snapshot of a paper job's program; a mix of states."""
     from foldfab.design import load_design
     from foldfab.devices import load_device
-    from foldfab.fabrication.spec import fabricate
+    from foldfab.fabricate import fabricate
     from foldfab.queue.store import NewJob, SqliteQueueStore, WorkerId, make_snapshot
 
     device = load_device("graphtec-ce6000")

@@ -29,7 +29,8 @@ from pathlib import Path
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
-from foldfab.fabrication.spec import fabricate, parse_fabrication
+from foldfab.fabricate import fabricate
+from foldfab.fabrication.spec import parse_fabrication
 from foldfab.plotting.stream import StreamStopped, stream
 from foldfab.plotting.transport import open_port
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
-from foldfab.fabrication.spec import fabricate
+from foldfab.fabricate import fabricate
 from foldfab.formats import svg
 from foldfab.programs.interpret import interpret
 from foldfab.programs.preview import render_preview

@@ -104,7 +104,7 @@ def build_design(job: Job, *, check_penetration: bool = True, allow_penetration:
     penetrations = np.zeros((0, 2), np.int64)
     warnings: list[str] = []
     if check_penetration:
-        from foldfab.geometry.model import find_penetrations
+        from foldfab.geometry.penetration import find_penetrations
 
         penetrations = find_penetrations(cp)
         if len(penetrations):

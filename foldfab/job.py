@@ -19,13 +19,9 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from foldfab.errors import FoldfabError, unknown_key
+from foldfab.limits import LENGTH_LIMIT
 
 TEMPLATES = ("regular", "star", "polyline")
-LENGTH_LIMIT = 1e6
-"""Millimetres (a kilometre): no coordinate, radius or length of a job may be larger.  Past
-it a design is no sheet of paper; and points are told apart to a billionth of the design's
-size (``reflection.REL_TOL``), so a larger trajectory blurs its profile's finer points
-(a radius of 1e12 mm made points 1 mm apart "the same point")."""
 
 
 @dataclass(frozen=True)
@@ -319,9 +315,8 @@ def job_from_data(data: dict[str, Any], path: str | Path = "<job>", text: str = 
     fabrication = data.get("fabrication", {})
     if not isinstance(fabrication, dict):
         raise FoldfabError(f"{source}: [fabrication]: expected a table")
-    from foldfab.fabrication.spec import parse_fabrication
-
-    parse_fabrication(fabrication, source)  # a mistake there is the job's, whichever command reads it
+    # Its keys are checked by the fabrication stage that owns them (foldfab.fabrication.spec.job_spec),
+    # for every command that reads a job.
     return Job(path, name, profile, trajectory, crease, fabrication, text, max_faces)
 
 

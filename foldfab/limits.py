@@ -1,6 +1,11 @@
 """The caps on what foldfab builds, checked before the work starts (the command line's
 help names them, so this module imports nothing)."""
 
+LENGTH_LIMIT = 1e6
+"""Millimetres (a kilometre): no coordinate, radius or length of a job may be larger.  Past
+it a design is no sheet of paper; and points are told apart to a billionth of the design's
+size (``foldfab.geometry.reflection.REL_TOL``), so a larger trajectory blurs its profile's finer points
+(a radius of 1e12 mm made points 1 mm apart "the same point")."""
 MAX_FACES = 2_000_000
 """The most faces a design may have unless the job (``[design].max_faces``) or the command
 line (``--max-faces``) allows more.  Twice the 1,000,000-face roll the benchmarks build.

@@ -8,7 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from foldfab.design import build_design
 from foldfab.devices import load_device
-from foldfab.fabrication.spec import fabricate
+from foldfab.fabricate import fabricate
 from foldfab.job import parse_job
 
 DEVICES = ("hp7475a", "grbl")

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from foldfab.devices import list_devices, load_device, parse_sheet
 from foldfab.errors import FoldfabError
-from foldfab.fabrication.plan import Tool
+from foldfab.devices import Tool
 
 SHIPPED = ["graphtec-ce6000", "grbl", "hp7475a", "roland-gx24"]
 ROOT = Path(__file__).resolve().parent.parent

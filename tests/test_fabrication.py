@@ -14,9 +14,11 @@ from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.estimate import estimate
-from foldfab.fabrication.spec import fabricate, finish_plan, parse_fabrication
+from foldfab.fabricate import fabricate
+from foldfab.fabrication.layout import finish_plan
+from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
-from foldfab.programs.program import write_program
+from foldfab.programs.languages import write_program
 from foldfab.fabrication.scoring import _chains, crease_lines, outline_loops
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -436,7 +438,7 @@ def test_fitted_scale_is_accepted_and_a_hair_more_is_refused(w, h, sheet, reach,
     """For any design extent, sheet, device reach, margin, turn and (two-sided) flip, the fitted
     scale passes the same placement check as a given scale, lands inside the usable region, is
     the better of the two turns, and 1.001 times it is refused."""
-    from foldfab.fabrication.spec import both_sides
+    from foldfab.fabrication.layout import both_sides
     from foldfab.fabrication.placement import fit, largest_scale, usable
 
     bounds = (complex(-w / 3, 7.0), complex(2 * w / 3, 7.0 + h))

@@ -14,7 +14,8 @@ from test_interpret import (assert_round_trip, make_document, random_plans, samp
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.gcode import write_gcode
-from foldfab.fabrication.plan import Pass, Pause, PlotPlan, Tool
+from foldfab.devices import Tool
+from foldfab.fabrication.plan import Pass, Pause, PlotPlan
 from foldfab.programs.program import fmt_number
 
 ALLOWED = {"G0", "G1", "G4", "G17", "G20", "G21", "G90", "G91", "G92", "M0", "M2", "M3", "M5"}

@@ -16,8 +16,9 @@ from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.hpgl import write_hpgl
 from foldfab.programs.interpret import HPGLTokenizer
-from foldfab.fabrication.plan import Pass, PlotPlan, Tool
-from foldfab.programs.program import write_program
+from foldfab.devices import Tool
+from foldfab.fabrication.plan import Pass, PlotPlan
+from foldfab.programs.languages import write_program
 
 HPGL_DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24"]
 

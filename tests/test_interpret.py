@@ -21,8 +21,10 @@ from foldfab.programs.estimate import (axis_factors, estimate, junction_limits, 
                               planned_segments, segment_times, straight_runs)
 from foldfab.programs.interpret import (GcodeMachine, HPGLMachine, HPGLTokenizer, Interpretation, Stroke,
                                Travel, interpret)
-from foldfab.fabrication.plan import Pass, Pause, PlotPlan, Tool
-from foldfab.programs.program import Program, write_program
+from foldfab.devices import Tool
+from foldfab.fabrication.plan import Pass, Pause, PlotPlan
+from foldfab.programs.languages import write_program
+from foldfab.programs.program import Program
 
 DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
 

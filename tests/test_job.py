@@ -13,7 +13,10 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from foldfab.errors import FoldfabError, unknown_key
-from foldfab.job import LENGTH_LIMIT, load_job, parse_job
+from foldfab.cli import main
+from foldfab.fabrication.spec import job_spec
+from foldfab.job import load_job, parse_job
+from foldfab.limits import LENGTH_LIMIT
 
 JOBS = sorted((Path(__file__).parent.parent / "jobs").glob("*.toml"))
 
@@ -24,8 +27,9 @@ POLYLINE = '[trajectory]\ntemplate = "polyline"\npoints = [[0, 0], [40, 20], [80
 
 
 def error_of(text: str, path: str = "jobs/x.toml") -> str:
+    """What every command says of a job text: the job read, its [fabrication] table checked."""
     with pytest.raises(FoldfabError) as info:
-        parse_job(textwrap.dedent(text), path)
+        job_spec(parse_job(textwrap.dedent(text), path))
     message = str(info.value)
     assert "\n" not in message, "an error is one line"
     assert message.startswith(f"{path}: "), "an error names the job file first"
@@ -288,9 +292,14 @@ def test_a_byte_order_mark_is_read_past(tmp_path):
     ("[fabrication]\nstrategy = 5\n", "[fabrication].strategy: expected a string"),
     ("[fabrication.perforate]\nvalley = [1]\n", "[fabrication.perforate].valley: expected an even-length list"),
 ])
-def test_a_mistake_in_the_fabrication_table_is_the_jobs(table, expected):
-    # Every command that reads the job refuses it, not only the ones that fabricate.
+def test_a_mistake_in_the_fabrication_table_is_the_jobs(table, expected, tmp_path, capsys):
+    # Every command that reads the job refuses it, not only the ones that fabricate: the job stage
+    # reads the table, the fabrication stage (which owns it) checks it, and `foldfab design` asks it.
     assert expected in error_of(PROFILE + REGULAR + table)
+    path = tmp_path / "x.toml"
+    path.write_text(PROFILE + REGULAR + table)
+    assert main(["design", str(path)]) == 2
+    assert f"{path}: {expected}" in capsys.readouterr().err
 
 
 def test_missing_job_file(tmp_path):

@@ -202,7 +202,8 @@ clearance = 0.1
 def test_a_program_over_the_stroke_limit_is_refused_before_it_is_cut(tmp_path):
     from foldfab.devices import load_device
     from foldfab.errors import FoldfabError
-    from foldfab.fabrication.spec import fabricate, parse_fabrication
+    from foldfab.fabricate import fabricate
+    from foldfab.fabrication.spec import parse_fabrication
     from foldfab.programs.interpret import interpret
 
     job = tmp_path / "fine.toml"

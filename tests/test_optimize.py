@@ -179,7 +179,8 @@ def test_device_steps_stop_before_each_other_tool_that_draws(steps):
     the last pass that drew; empty passes and pauses change nothing; indices stay the plan's."""
     import vpype as vp
 
-    from foldfab.fabrication.plan import Pass, Pause, PlotPlan, Tool, device_steps
+    from foldfab.devices import Tool
+    from foldfab.fabrication.plan import Pass, Pause, PlotPlan, device_steps
 
     doc = vp.Document()
     plan_steps = []
@@ -212,7 +213,8 @@ def test_a_layer_after_a_pause_is_sorted_from_the_park_position():
     import vpype as vp
 
     from foldfab.fabrication.optimize import optimize_plan, travel
-    from foldfab.fabrication.plan import Pass, Pause, PlotPlan, Tool
+    from foldfab.devices import Tool
+    from foldfab.fabrication.plan import Pass, Pause, PlotPlan
 
     doc = vp.Document()
     doc.add(vp.LineCollection([np.array([100 + 100j, 150 + 100j])]), 1)

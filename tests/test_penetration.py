@@ -14,7 +14,8 @@ from foldfab.geometry.crease_pattern import build_crease_pattern
 from foldfab.errors import DesignError
 from foldfab.job import parse_job
 from foldfab.design import build_design
-from foldfab.geometry.model import find_penetrations, to_trimesh
+from foldfab.formats.mesh import to_trimesh
+from foldfab.geometry.penetration import find_penetrations
 from foldfab.geometry.reflection import reflect
 
 

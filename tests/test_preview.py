@@ -13,7 +13,7 @@ from foldfab.devices import load_device
 from foldfab.programs.estimate import estimate
 from foldfab.programs.interpret import interpret
 from foldfab.programs.preview import COLORS, render_preview
-from foldfab.programs.program import write_program
+from foldfab.programs.languages import write_program
 
 SVG = "{http://www.w3.org/2000/svg}"
 

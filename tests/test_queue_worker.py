@@ -21,7 +21,8 @@ from processes import wait_for_handler
 from foldfab.cli import main
 from foldfab.design import load_design
 from foldfab.devices import load_device
-from foldfab.fabrication.spec import fabricate, parse_fabrication
+from foldfab.fabricate import fabricate
+from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
 from foldfab.plotting.progress import JobProgress
 from foldfab.queue.store import NewJob, SqliteQueueStore, make_snapshot

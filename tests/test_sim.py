@@ -27,7 +27,8 @@ from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.estimate import estimate, move_limits, move_times, polyline_runs, travel_times
-from foldfab.fabrication.spec import fabricate, parse_fabrication
+from foldfab.fabricate import fabricate
+from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import HPGLMachine, HPGLTokenizer, interpret
 from foldfab.sim import SimOptions, create_simulator, parse_options
 from foldfab.sim.pty import serve_pty

@@ -28,13 +28,14 @@ from test_interpret import make_document, sample_plan
 
 from foldfab.design import load_design
 from foldfab.devices import BufferSettings, load_device
-from foldfab.fabrication.spec import fabricate, parse_fabrication
+from foldfab.fabricate import fabricate
+from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
 from foldfab.plotting.progress import JobProgress
 from foldfab.errors import FoldfabError
 from foldfab.programs.hpgl import write_hpgl
 from foldfab.fabrication.plan import Pass, PlotPlan
-from foldfab.programs.program import write_program
+from foldfab.programs.languages import write_program
 from foldfab.plotting.stream import GRBL_RX_BUFFER, StreamStopped, stream
 from foldfab.plotting.transport import open_port
 

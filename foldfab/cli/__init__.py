@@ -28,11 +28,11 @@ def _design_outputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
 
 def cmd_design(args: argparse.Namespace) -> int:
     """Build a design; print its summary and write the requested files."""
-    from foldfab.design import load_design, summary
+    from foldfab.design import summary
     from foldfab.formats.output import write_design_files
 
     outputs = _design_outputs(args)
-    design = load_design(args.job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)
+    design = _design(args)
     try:
         write_design_files(design, outputs)
     except OSError as exc:  # e.g. the path is a folder or not writable: one line, and every file as it was
@@ -72,14 +72,24 @@ def format_summary(info: dict) -> str:
 PROGRAM_SUFFIXES = {"hpgl": (".hpgl", ".plt", ".hpg"), "gcode": (".gcode", ".nc", ".gc", ".ngc")}
 
 
+def _design(args: argparse.Namespace):
+    """The command's job read, every table checked ([fabrication] too), and its design built."""
+    from foldfab.design import build_design
+    from foldfab.fabrication.spec import job_spec
+    from foldfab.job import load_job
+
+    job = load_job(args.job)
+    job_spec(job)
+    return build_design(job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)
+
+
 def _fabricate(args: argparse.Namespace):
     """Design, device profile and fabrication of the command's job."""
-    from foldfab.design import load_design
     from foldfab.devices import load_device
-    from foldfab.fabrication.spec import fabricate
+    from foldfab.fabricate import fabricate
 
     device = load_device(args.device)
-    design = load_design(args.job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)
+    design = _design(args)
     fab = fabricate(design, device, scale=getattr(args, "scale", None))
     for warning in (*design.warnings, *fab.warnings):
         print(f"foldfab: warning: {warning}", file=sys.stderr)

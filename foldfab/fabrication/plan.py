@@ -16,25 +16,10 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Union
 
+from foldfab.devices import Tool
+
 if TYPE_CHECKING:
     import vpype
-
-
-@dataclass(frozen=True)
-class Tool:
-    """Resolved settings for one pass."""
-
-    pen: int
-    """HPGL pen / tool number (``SP n``); for G-code, the tool named in tool-change messages."""
-    force: float | None
-    """Device force units (see the device profile's ``[limits] force``); None = do not set."""
-    speed: float
-    """Drawing speed in mm/s."""
-    passes: int = 1
-    """Each line of the layer is drawn this many times (the whole layer is repeated)."""
-    pen_down: float | str | None = None
-    """G-code: the depth of the profile layer this pass borrows its tool from (perforation dashes
-    cut at the cut's depth); None: the depth of the pass's own layer."""
 
 
 @dataclass(frozen=True)

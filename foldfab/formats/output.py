@@ -38,7 +38,7 @@ def design_file_data(design: Design, kind: str, suffix: str = "") -> bytes:
 
         return oripa.dumps(cp).encode()
     if kind == "mesh":
-        from foldfab.geometry.model import GLTF_FROM_FOLDFAB, to_trimesh
+        from foldfab.formats.mesh import GLTF_FROM_FOLDFAB, to_trimesh
 
         mesh, file_type = to_trimesh(cp), suffix.lower().lstrip(".")
         if file_type == "glb":

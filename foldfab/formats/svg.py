@@ -42,9 +42,9 @@ def user_unit(vertices: np.ndarray) -> float:
 def _shortest_distance(vertices: np.ndarray, reach: float) -> float | None:
     """The distance between the closest two distinct vertices, if it is under ``reach`` (None:
     no two are that close).  Boxes of side ``reach`` round the vertices overlap for every such
-    pair, so the penetration check's uniform grid (:func:`foldfab.geometry.model.candidate_pairs`) finds
+    pair, so the penetration check's uniform grid (:func:`foldfab.geometry.penetration.candidate_pairs`) finds
     them all, in numpy alone (no spatial index to load for writing an SVG)."""
-    from foldfab.geometry.model import candidate_pairs
+    from foldfab.geometry.penetration import candidate_pairs
 
     unique = np.unique(vertices, axis=0)
     if len(unique) < 2:

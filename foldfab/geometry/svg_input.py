@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from foldfab.errors import FoldfabError
-from foldfab.job import LENGTH_LIMIT
+from foldfab.limits import LENGTH_LIMIT
 
 _UNIT_MM = {"": 25.4 / 96, "px": 25.4 / 96, "mm": 1.0, "cm": 10.0, "in": 25.4,
             "pt": 25.4 / 72, "pc": 25.4 / 6, "q": 0.25}

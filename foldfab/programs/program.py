@@ -26,7 +26,8 @@ from operator import attrgetter
 from typing import TYPE_CHECKING, Union
 
 from foldfab.errors import FoldfabError
-from foldfab.fabrication.plan import Pass, Pause, PlotPlan, Tool, device_steps
+from foldfab.devices import Tool
+from foldfab.fabrication.plan import Pass, Pause, PlotPlan, device_steps
 
 if TYPE_CHECKING:
     import numpy as np
@@ -93,17 +94,6 @@ class Stop:
 
     step: int
     message: str
-
-
-def write_program(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """Write ``plan`` in the device's language (HPGL or G-code)."""
-    if device.protocol == "hpgl":
-        from foldfab.programs.hpgl import write_hpgl
-
-        return write_hpgl(plan, device)
-    from foldfab.programs.gcode import write_gcode
-
-    return write_gcode(plan, device)
 
 
 class ProgramBuilder:

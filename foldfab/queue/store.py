@@ -220,7 +220,7 @@ def _program_meta(program: Program) -> str:
 
 
 def _program_from(text: str, meta: str) -> Program:
-    from foldfab.fabrication.plan import Tool
+    from foldfab.devices import Tool
     from foldfab.programs.program import PauseMark, Program, Section
 
     data = json.loads(meta)

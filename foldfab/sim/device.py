@@ -34,6 +34,7 @@ See :class:`~foldfab.sim.record.SimStats`.
 from __future__ import annotations
 
 import bisect
+import json
 import math
 import re
 from collections import deque
@@ -43,7 +44,7 @@ import numpy as np
 
 from foldfab.sim.clock import Clock
 from foldfab.sim.motion import Block, plan_start
-from foldfab.sim.record import JobRecord, PauseRecord, SimStats, recording_json, recording_svg
+from foldfab.sim.record import JobRecord, PauseRecord, SimStats, layer_named, stroke_dict
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -212,8 +213,15 @@ class Simulator:
         raise NotImplementedError
 
     def to_json(self) -> str:
-        """Device, options, statistics and strokes as JSON text."""
-        return recording_json(self)
+        """Device, options, statistics and every drawn stroke (sheet mm) as JSON text."""
+        return json.dumps({
+            "device": self.device.name,
+            "protocol": self.device.protocol,
+            "sheet_mm": list(self.sheet),
+            "options": self.options.as_dict(),
+            "stats": self.stats.as_dict(),
+            "strokes": [stroke_dict(s) for s in self.strokes],
+        }, indent=1)
 
     def write_json(self, path) -> None:
         from foldfab.atomic import write_text
@@ -221,10 +229,16 @@ class Simulator:
         write_text(path, self.to_json())
 
     def write_svg(self, path) -> None:
-        """The drawn strokes as foldfab's preview SVG."""
-        from foldfab.atomic import write_text
+        """The drawn strokes and travel as foldfab's preview SVG, each stroke in the colour of
+        the layer whose tool drew it (:func:`~foldfab.sim.record.layer_named`)."""
+        from dataclasses import replace
 
-        write_text(path, recording_svg(self))
+        from foldfab.atomic import write_text
+        from foldfab.programs.preview import render_preview
+
+        run = self.interpretation()
+        write_text(path, render_preview(replace(run, strokes=layer_named(run.strokes, self.device)), self.device,
+                                        self.sheet))
 
     # --- device time --------------------------------------------------------------------
 

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
     from foldfab.programs.interpret import Stroke
-    from foldfab.sim.device import Simulator
 
 
 @dataclass
@@ -114,29 +112,6 @@ def stroke_dict(stroke: Stroke) -> dict:
             "speed": stroke.speed, "pen_down": stroke.pen_down, "offset": stroke.offset}
 
 
-def recording_json(sim: Simulator) -> str:
-    """Device, options, statistics and every drawn stroke (sheet mm) as JSON text."""
-    return json.dumps({
-        "device": sim.device.name,
-        "protocol": sim.device.protocol,
-        "sheet_mm": list(sim.sheet),
-        "options": sim.options.as_dict(),
-        "stats": sim.stats.as_dict(),
-        "strokes": [stroke_dict(s) for s in sim.strokes],
-    }, indent=1)
-
-
-def recording_svg(sim: Simulator) -> str:
-    """The drawn strokes and travel as foldfab's preview SVG, each stroke in the colour of
-    the layer whose tool drew it (:func:`layer_named`)."""
-    from dataclasses import replace
-
-    from foldfab.programs.preview import render_preview
-
-    run = sim.interpretation()
-    return render_preview(replace(run, strokes=layer_named(run.strokes, sim.device)), sim.device, sim.sheet)
-
-
 def layer_named(strokes: list[Stroke], device: DeviceProfile) -> list[Stroke]:
     """``strokes`` named by the device profile's layer whose tool drew them: the same pen (HPGL),
     force and lowered position (G-code); layers with one tool share a name ("valley+mountain",
@@ -145,7 +120,7 @@ def layer_named(strokes: list[Stroke], device: DeviceProfile) -> list[Stroke]:
     from dataclasses import replace
 
     from foldfab.programs.program import Section
-    from foldfab.fabrication.plan import Tool
+    from foldfab.devices import Tool
 
     by_tool: dict[tuple, list[str]] = {}
     for name, layer in device.layers.items():

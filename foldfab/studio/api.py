@@ -52,6 +52,15 @@ NEW_JOB = {
 }
 
 
+def _checked(job):
+    """``job``, its ``[fabrication]`` table validated too (:func:`~foldfab.fabrication.spec.job_spec`):
+    the studio saves and shows only jobs every command reads."""
+    from foldfab.fabrication.spec import job_spec
+
+    job_spec(job)
+    return job
+
+
 class ApiError(Exception):
     """A request the studio refuses: HTTP ``status`` with ``message`` and extra JSON fields."""
 
@@ -177,7 +186,7 @@ class Studio:
         if self.job_path is not None:
             self.job_path = Path(self.job_path).resolve()
             if self.job_path.exists():
-                load_job(self.job_path)  # a job file that does not read is an error before the server starts
+                _checked(load_job(self.job_path))  # a job file that does not read is an error before the server starts
 
     # -- dispatch
 
@@ -279,7 +288,7 @@ class Studio:
         from foldfab.job import job_from_data, toml_text
 
         data = _field(request, "job", dict)
-        return job_from_data(data, self._job_path(request), toml_text(data))
+        return _checked(job_from_data(data, self._job_path(request), toml_text(data)))
 
     def _device(self, name: str):
         from foldfab.devices import load_device
@@ -327,13 +336,14 @@ class Studio:
 
     def _fit(self, design, device_name: str) -> dict | None:
         """Does the design fit the device's sheet (the job's [fabrication] settings)?"""
-        from foldfab.fabrication.spec import parse_fabrication, place
+        from foldfab.fabrication.layout import place
+        from foldfab.fabrication.spec import job_spec
 
         if not device_name:
             return None
         try:
             device = self._device(device_name)
-            spec = parse_fabrication(design.job.fabrication, str(design.job.path))
+            spec = job_spec(design.job)
             placement, sheet = place(design, device, spec)
         except FoldfabError as exc:
             return {"device": device_name, "ok": False, "message": str(exc).removeprefix(f"{design.job.path}: ")}
@@ -352,7 +362,7 @@ class Studio:
         from foldfab.queue.store import default_queue_path
 
         path = self.job_path or self.start_dir / "untitled.toml"
-        job = job_data(load_job(path)) if self.job_path and self.job_path.is_file() else \
+        job = job_data(_checked(load_job(path))) if self.job_path and self.job_path.is_file() else \
             {**NEW_JOB, "design": {"name": path.stem}}
         return {"job": job, "path": str(path), "display": self.display(path), "start_dir": str(self.start_dir),
                 "devices": list_devices(), "queue": {"available": True, "location": str(default_queue_path())},
@@ -400,7 +410,7 @@ class Studio:
         from foldfab.job import job_data, load_job
 
         path = self.user_path(_field(request, "target", str))
-        job = load_job(path)
+        job = _checked(load_job(path))
         return {"job": job_data(job), "path": str(path), "display": self.display(path)}
 
     def files(self, request: dict) -> dict:
@@ -421,7 +431,7 @@ class Studio:
         with self._write_lock:
             target = self._target(request, (".toml",))
             text = job_to_toml(job, target.parent)
-            saved = parse_job(text, target)
+            saved = _checked(parse_job(text, target))
             write_text(target, text)
         return {"written": str(target), "path": str(target), "display": self.display(target),
                 "job": job_data(saved)}
@@ -441,7 +451,7 @@ class Studio:
         return {"written": str(target), "kind": kind}
 
     def _fabricate(self, request: dict):
-        from foldfab.fabrication.spec import fabricate
+        from foldfab.fabricate import fabricate
 
         device_name = _field(request, "device", str, "")
         design = self._build(request)

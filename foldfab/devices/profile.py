@@ -1,0 +1,294 @@
+"""The device profile's data model: what a plotter speaks, where its origin is, its motion,
+limits and layer tools, and the frame that maps sheet millimetres to device units.
+
+Imported by the command line's fast path: no numpy or vpype at module level (the
+:class:`Frame` methods import numpy when called).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Mapping
+
+from foldfab.devices.checks import _TOOL_KEYS, _Reader, _check_tool
+from foldfab.errors import FoldfabError
+
+GCODE_DECIMALS = 3
+"""Decimals of the millimetre coordinates in G-code (GRBL takes more; a micrometre is plenty)."""
+
+if TYPE_CHECKING:
+    import numpy as np
+REQUIRED_LAYERS = ("valley", "mountain", "cut")
+DIRECTIONS = {"right": (1, 0), "left": (-1, 0), "down": (0, 1), "up": (0, -1)}
+PARITIES = {"none": "N", "even": "E", "odd": "O", "mark": "M", "space": "S"}
+FLOW_CONTROLS = ("xonxoff", "rtscts", "escb", "grbl", "none")
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """What one plotter language can express about a tool."""
+
+    force: bool
+    """The language has a force command (HPGL ``FS``)."""
+    force_step: float | None
+    """Resolution of the force value (None: no force)."""
+    speed_step: float | None
+    """Resolution of the speed in mm/s (None: practically continuous)."""
+
+
+DIALECTS = {
+    "hpgl": {
+        # VS in cm/s with two decimals
+        "hp": Dialect(force=False, force_step=None, speed_step=0.1),
+        # FS in whole force steps, VS in whole cm/s
+        "graphtec": Dialect(force=True, force_step=1.0, speed_step=10.0),
+        # FS in whole grams-force, VS in whole cm/s
+        "roland": Dialect(force=True, force_step=1.0, speed_step=10.0),
+    },
+    "gcode": {"grbl": Dialect(force=False, force_step=None, speed_step=None)},
+}
+
+
+@dataclass(frozen=True)
+class Tool:
+    """Resolved settings for one pass."""
+
+    pen: int
+    """HPGL pen / tool number (``SP n``); for G-code, the tool named in tool-change messages."""
+    force: float | None
+    """Device force units (see the device profile's ``[limits] force``); None = do not set."""
+    speed: float
+    """Drawing speed in mm/s."""
+    passes: int = 1
+    """Each line of the layer is drawn this many times (the whole layer is repeated)."""
+    pen_down: float | str | None = None
+    """G-code: the depth of the profile layer this pass borrows its tool from (perforation dashes
+    cut at the cut's depth); None: the depth of the pass's own layer."""
+
+
+@dataclass(frozen=True)
+class SerialSettings:
+    """pyserial settings (``parity`` is a pyserial letter N/E/O/M/S)."""
+
+    baudrate: int
+    bytesize: int = 8
+    parity: str = "N"
+    stopbits: float = 1
+    xonxoff: bool = False
+    rtscts: bool = False
+    dsrdtr: bool = False
+
+
+@dataclass(frozen=True)
+class BufferSettings:
+    """The device's receive buffer and how a sender keeps from overrunning it."""
+
+    size: int
+    flow_control: str
+
+    @property
+    def instruction_limit(self) -> int:
+        """HP-GL: bytes an instruction may have (the writer splits longer ``PD`` lists).  A
+        sender waits for room for a whole instruction, and with no handshake it cannot send
+        more than a buffer between two checks, so an instruction must fit with room to spare:
+        half the buffer (the plotter reads the next while drawing one), at least 24 bytes
+        (a coordinate pair) where the buffer holds that and a 3-byte ``OE;`` marker."""
+        return max(self.size // 2, min(24, self.size - 3))
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Kinematics for time estimates, and the park position (device mm)."""
+
+    draw_speed: float
+    travel_speed: float
+    acceleration: float
+    pen_lift_time: float
+    park: tuple[float, float] = (0.0, 0.0)
+    junction_deviation: float | None = None
+    """GRBL's ``$11`` (mm): corners are planned with junction speeds; None: taken from rest."""
+    axis_limits: bool = False
+    """``travel_speed`` and ``acceleration`` limit each axis (GRBL's ``$110``/``$111``,
+    ``$120``/``$121``), not the head's path: see :func:`foldfab.programs.estimate.axis_factors`."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Accepted ranges, inclusive; None = unchecked."""
+
+    pen: tuple[float, float] | None = None
+    force: tuple[float, float] | None = None
+    speed: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
+class GcodeSettings:
+    """How a G-code device lifts its tool: a Z height or a servo command."""
+
+    pen_up: float | str
+    z_speed: float | None
+
+
+@dataclass(frozen=True)
+class LayerDefaults:
+    """Profile defaults for one layer name."""
+
+    pen: int
+    force: float | None
+    speed: float
+    passes: int
+    pen_down: float | str | None
+
+
+@dataclass(frozen=True)
+class Frame:
+    """Sheet millimetres <-> device units, for one device and one sheet size.
+
+    ``device = units_per_mm * (M (sheet - corner) - offset)`` where the rows of ``M``
+    are the sheet directions of device +x and +y.  Writers use :meth:`to_device`,
+    interpreters :meth:`to_sheet`, so a round trip is exact up to the writer's rounding.
+    """
+
+    matrix: tuple[tuple[int, int], tuple[int, int]]
+    corner: tuple[float, float]
+    offset: tuple[float, float]
+    units_per_mm: float
+
+    def to_device(self, points: np.ndarray) -> np.ndarray:
+        """Sheet mm (complex array or (N, 2)) -> device units, float (N, 2)."""
+        import numpy as np
+
+        pts = np.asarray(points)
+        if np.iscomplexobj(pts):
+            pts = np.column_stack([pts.real, pts.imag])
+        rel = pts.reshape(-1, 2) - np.asarray(self.corner)
+        return (rel @ np.asarray(self.matrix, dtype=float).T - self.offset) * self.units_per_mm
+
+    def to_sheet(self, points: np.ndarray) -> np.ndarray:
+        """Device units (N, 2) -> sheet mm, float (N, 2)."""
+        import numpy as np
+
+        dev = np.asarray(points, dtype=float).reshape(-1, 2) / self.units_per_mm + self.offset
+        return dev @ np.asarray(self.matrix, dtype=float) + self.corner
+
+    def device_rect_on_sheet(self, width: float, height: float) -> tuple[float, float, float, float]:
+        """The device rectangle [0, width] x [0, height] (mm) as (x0, y0, x1, y1) on the sheet."""
+        (a, b), (c, d) = self.matrix
+        xs, ys = [], []
+        for u, v in ((0.0, 0.0), (width, height)):
+            u, v = u + self.offset[0], v + self.offset[1]
+            xs.append(self.corner[0] + a * u + c * v)
+            ys.append(self.corner[1] + b * u + d * v)
+        return min(xs), min(ys), max(xs), max(ys)
+
+
+@dataclass(frozen=True)
+class DeviceProfile:
+    """A validated device profile (see the module docstring for the schema)."""
+
+    name: str
+    model: str
+    protocol: str
+    dialect: str
+    units_per_mm: float
+    origin: str
+    x_axis: str
+    y_axis: str
+    origin_offset: tuple[float, float]
+    plottable_area: tuple[float, float]
+    sheet: tuple[float, float]
+    port: str | None
+    tool_changer: bool
+    serial: SerialSettings
+    buffer: BufferSettings
+    motion: Motion
+    limits: Limits
+    gcode: GcodeSettings | None
+    layers: Mapping[str, LayerDefaults]
+    source: str
+
+    @property
+    def resolution(self) -> float:
+        """The smallest step a program for this device expresses, mm: one plotter unit in
+        HP-GL, the last of the :data:`GCODE_DECIMALS` decimals G-code coordinates are written with.
+        Optimization merges and simplifies within it, so the program moves nothing further."""
+        return 1.0 / self.units_per_mm if self.protocol == "hpgl" else 10.0 ** -GCODE_DECIMALS
+
+    @property
+    def park_units(self) -> tuple[float, float]:
+        """The park position in device units as programs write it (whole plotter units in
+        HP-GL): where the pen waits at pauses and at the end, and so where a job starts."""
+        x, y = (v * self.units_per_mm for v in self.motion.park)
+        return (round(x), round(y)) if self.protocol == "hpgl" else (x, y)
+
+    @property
+    def language(self) -> Dialect:
+        """What this device's plotter language can express."""
+        return DIALECTS[self.protocol][self.dialect]
+
+    def frame(self, sheet: tuple[float, float]) -> Frame:
+        """The sheet <-> device mapping for a sheet of this size (w, h mm)."""
+        ex, ey = DIRECTIONS[self.x_axis], DIRECTIONS[self.y_axis]
+        corner = _origin_corner(ex, ey, sheet)
+        return Frame((ex, ey), corner, self.origin_offset, self.units_per_mm)
+
+    def tool_for(
+        self, layer_name: str, overrides: Mapping[str, Any] | None = None, source: str = "job",
+        like: str | None = None,
+    ) -> Tool:
+        """The profile's tool for ``layer_name`` with job ``overrides`` (pen, force, speed, passes).
+
+        ``like`` names the profile layer whose settings the overrides start from (default
+        ``layer_name``: perforation dashes start from the cut's); ``source`` names where the
+        overrides come from (a job file) in error messages.
+        """
+        like = like or layer_name
+        if like not in self.layers:
+            raise FoldfabError(
+                f"{self.source}: no [layers.{like}] table; known layers: "
+                f"{', '.join(self.layers)}; add one to the profile or rename the layer"
+            )
+        base = self.layers[like]
+        values = {key: getattr(base, key) for key in _TOOL_KEYS}
+        reader = _Reader(dict(overrides or {}), source, f"layers.{layer_name}.", _TOOL_KEYS)
+        values.update({key: reader.take(key, *_TOOL_KEYS[key]) for key in _TOOL_KEYS
+                       if key in reader.data})
+        reader.done()
+        _check_tool(self, reader, **values)
+        return Tool(**values, pen_down=base.pen_down if like != layer_name else None)
+
+    def lacks(self, key: str) -> str | None:
+        """Why this device has no ``key`` tool setting (None: it has it)."""
+        if key == "force" and not self.language.force:
+            return "its language has no force command"
+        return None
+
+    def supported(self, overrides: Mapping[str, Any], where: str) -> tuple[dict[str, Any], list[str]]:
+        """A job's tool ``overrides`` less the settings this device does not have, and one warning
+        line for each left out (``where`` names the job's table).  A job describes the sheet and
+        the creases, not one machine: a setting another device has is no mistake on this one.
+        A malformed value is kept, for :meth:`tool_for` to refuse."""
+        kept, warnings = dict(overrides), []
+        for key in [key for key, value in kept.items()
+                    if key in _TOOL_KEYS and self.lacks(key) and _TOOL_KEYS[key][1](value) is not None]:
+            value = kept.pop(key)
+            warnings.append(f"{where}.{key} = {value!r} ignored: {self.name} has no {key} setting "
+                            f"({self.lacks(key)})")
+        return kept, warnings
+
+    def check_tool(self, tool: Tool, where: str) -> None:
+        """Raise FoldfabError unless this device can use ``tool`` (``where`` names the step)."""
+        reader = _Reader({key: getattr(tool, key) for key in _TOOL_KEYS
+                          if getattr(tool, key) is not None}, where, "tool.")
+        values = {key: reader.take(key, *_TOOL_KEYS[key], None) for key in _TOOL_KEYS}
+        _check_tool(self, reader, **values)
+
+
+# --- loading -------------------------------------------------------------------------
+
+
+def _origin_corner(ex, ey, sheet) -> tuple[float, float]:
+    """The sheet corner from which both device axes point into the sheet."""
+    x = 0.0 if (ex[0] > 0 or ey[0] > 0) else float(sheet[0])
+    y = 0.0 if (ex[1] > 0 or ey[1] > 0) else float(sheet[1])
+    return x, y
