@@ -196,7 +196,8 @@ def test_a_layer_setting_the_device_lacks_is_one_warning_line(tmp_path, capsys, 
 def test_queue_add_and_the_resume_command_keep_the_scale(tmp_path, capsys):
     """A queued job is built at the --scale given; a stopped plot's resume command repeats it,
     since the resume token belongs to the program that scale makes."""
-    from foldfab.cli import _resume_command, build_parser
+    from foldfab.cli import build_parser
+    from foldfab.cli.plot import _resume_command
 
     code, out, err = run(capsys, "export", HEXAGON, "--device", "grbl", "-o", tmp_path / "x.gcode", "--scale", "fit")
     assert code == 0, err

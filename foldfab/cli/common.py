@@ -1,0 +1,162 @@
+"""What several commands share: the job's design and fabrication, the checks of output paths
+said before any work is done, the fabrication report, the dry-run preview, and argument types.
+
+Its own module so that every command module imports it and none imports another one or
+:mod:`foldfab.cli` (whose :func:`~foldfab.cli.build_parser` imports them all)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def _design(args: argparse.Namespace):
+    """The command's job read, every table checked ([fabrication] too), and its design built."""
+    from foldfab.design import build_design
+    from foldfab.fabrication.spec import job_spec
+    from foldfab.job import load_job
+
+    job = load_job(args.job)
+    job_spec(job)
+    return build_design(job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)
+
+
+def _fabricate(args: argparse.Namespace):
+    """Design, device profile and fabrication of the command's job."""
+    from foldfab.devices import load_device
+    from foldfab.fabricate import fabricate
+
+    device = load_device(args.device)
+    design = _design(args)
+    fab = fabricate(design, device, scale=getattr(args, "scale", None))
+    for warning in (*design.warnings, *fab.warnings):
+        print(f"foldfab: warning: {warning}", file=sys.stderr)
+    return design, device, fab
+
+
+def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> None:
+    from foldfab.errors import FoldfabError
+
+    if path.suffix.lower() not in suffixes:
+        raise FoldfabError(f"{option} {path}: expected a file ending in {', '.join(suffixes)}")
+    _check_folder(path, option)
+
+
+def _check_folder(path: Path, option: str) -> None:
+    """An output path must name a file in a folder that exists: said before any work is done."""
+    from foldfab.errors import FoldfabError
+
+    if path.is_dir():
+        raise FoldfabError(f"{option} {path}: is a folder; give the name of a file in it")
+    if str(path.parent) and not path.parent.is_dir():
+        what = "is a file, not a folder" if path.parent.exists() else "does not exist; create it first"
+        raise FoldfabError(f"{option} {path}: folder {path.parent} {what}")
+
+
+def fabrication_report(fab, device) -> dict:
+    """Per-layer lengths, travel before/after optimization and the time estimate of a fabrication."""
+    from foldfab.programs.estimate import estimate
+    from foldfab.programs.interpret import interpret
+
+    run = interpret(fab.program, device, fab.plan.sheet)
+    times = estimate(run, device)
+    return {
+        "device": device.name,
+        "strategy": fab.spec.strategy,
+        "sheet_mm": list(fab.plan.sheet),
+        "optimize": fab.spec.optimize,
+        "scale": fab.placement.scale,
+        "scale_fitted": fab.spec.scale == "fit",
+        "rotated": fab.placement.rotated,
+        "warnings": list(fab.warnings),
+        "layers": {name: {"drawn_mm": round(t.drawn_length, 1), "pen_lifts": t.pen_lifts,
+                          "travel_mm": round(t.travel_length, 1), "time_s": round(t.time, 1)}
+                   for name, t in times.layers.items()},
+        "travel_mm": {"before": {k: round(v, 1) for k, v in fab.travel_before["layers"].items()},
+                      "after": {k: round(v, 1) for k, v in fab.travel_after["layers"].items()},
+                      "total_before": round(fab.travel_before["total"], 1),
+                      "total_after": round(fab.travel_after["total"], 1)},
+        "pauses": [p.message for p in run.pauses],
+        "estimated_time_s": round(times.total, 1),
+        "lower_bound_s": round(times.lower_bound, 1),
+        "program_bytes": len(fab.program.text),
+    }
+
+
+def format_report(info: dict) -> str:
+    """Human-readable fabrication report."""
+    from foldfab.fabrication.spec import placement_text
+
+    lines = [f"device       {info['device']}  strategy {info['strategy']}  sheet {info['sheet_mm'][0]:g} x {info['sheet_mm'][1]:g} mm",
+             f"placement    {placement_text(info['scale'], info['scale_fitted'], info['rotated'])}"]
+    for name, layer in info["layers"].items():
+        lines.append(f"{name:<12} {layer['drawn_mm']:>9.1f} mm drawn {layer['pen_lifts']:>6} pen lifts "
+                     f"{layer['travel_mm']:>9.1f} mm travel {layer['time_s']:>8.1f} s")
+    before, after = info["travel_mm"]["before"], info["travel_mm"]["after"]
+    lines.append(f"pen-up travel ({info['optimize']}): {info['travel_mm']['total_before']:.1f} mm -> "
+                 f"{info['travel_mm']['total_after']:.1f} mm")
+    for key in after:
+        lines.append(f"  {key:<16} {before.get(key, 0.0):>10.1f} -> {after[key]:>10.1f} mm")
+    for message in info["pauses"]:
+        lines.append(f"pause        {message}")
+    lines.append(f"estimate     {info['estimated_time_s']:.1f} s (lower bound {info['lower_bound_s']:.1f} s)")
+    return "\n".join(lines)
+
+
+def _write_preview(fab, device, output: Path) -> None:
+    """The dry-run SVG of a fabrication (``foldfab preview``, ``foldfab plot --preview``)."""
+    from foldfab.atomic import write_text
+    from foldfab.programs.interpret import interpret
+    from foldfab.programs.preview import render_preview
+
+    write_text(output, render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan,
+                                      notes=[fab.placement_summary]))
+
+
+def _add_scale_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--scale", type=_scale, metavar="S|fit",
+                        help="scale of the design on the sheet instead of the job's [fabrication].scale: a number "
+                             "> 0, or fit: the largest that fits the sheet and the device's reach")
+
+
+def _scale(text: str) -> float | str:
+    """An argparse type: ``fit`` or a finite number > 0."""
+    import math
+
+    if text == "fit":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number > 0 or fit, got {text!r}")
+    return value
+
+
+def _add_max_faces(parser: argparse.ArgumentParser) -> None:
+    from foldfab.limits import MAX_FACES
+
+    parser.add_argument("--max-faces", type=_positive_int, metavar="N",
+                        help=f"build a design of up to N faces (default: the job's [design].max_faces, "
+                             f"else {MAX_FACES:,})")
+
+
+def _positive_int(text: str) -> int:
+    """An argparse type: a whole number, 1 or more."""
+    return _int_from(1, None, "expected a whole number")(text)
+
+
+def _int_from(low: int, high: int | None, what: str):
+    """An argparse type: a whole number from ``low`` to ``high`` (None: no upper bound)."""
+    def whole(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if value < low or (high is not None and value > high):
+            bounds = f"from {low} to {high}" if high is not None else f"of {low} or more"
+            raise argparse.ArgumentTypeError(f"{what} {bounds}, got {value}")
+        return value
+    return whole

@@ -1,0 +1,137 @@
+"""``foldfab design``, ``export`` and ``preview``: a job's design files, its plotter program,
+and the program's dry run, each written once the whole job is built."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from foldfab.cli.common import (_add_max_faces, _add_scale_arg, _check_folder, _check_output, _design, _fabricate,
+                                _write_preview, fabrication_report, format_report)
+
+
+def _design_outputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
+    outputs = [(kind, Path(path)) for kind, path in
+               (("fold", args.fold), ("svg", args.svg), ("cp", args.cp), ("mesh", args.mesh)) if path]
+    from foldfab.errors import FoldfabError
+    from foldfab.formats.output import MESH_SUFFIXES
+
+    for kind, path in outputs:
+        if kind == "mesh" and path.suffix.lower() not in MESH_SUFFIXES:
+            raise FoldfabError(f"--mesh {path}: unknown mesh format {path.suffix!r}; use one of {', '.join(MESH_SUFFIXES)}")
+        _check_folder(path, f"--{kind}")
+    return outputs
+
+
+def cmd_design(args: argparse.Namespace) -> int:
+    """Build a design; print its summary and write the requested files."""
+    from foldfab.design import summary
+    from foldfab.formats.output import write_design_files
+
+    outputs = _design_outputs(args)
+    design = _design(args)
+    try:
+        write_design_files(design, outputs)
+    except OSError as exc:  # e.g. the path is a folder or not writable: one line, and every file as it was
+        from foldfab.errors import FoldfabError
+
+        kind, path = next((k, p) for k, p in outputs if str(p) == exc.filename)
+        raise FoldfabError(f"--{kind} {path}: cannot write: {exc.strerror or exc}") from None
+    info = summary(design)
+    info["written"] = [str(p) for _, p in outputs]
+    for warning in design.warnings:
+        print(f"foldfab: warning: {warning}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        print(format_summary(info))
+    return 0
+
+
+def format_summary(info: dict) -> str:
+    """Human-readable summary of a design."""
+    lines = [
+        f"design       {info['name']}  ({info['job']})",
+        f"trajectory   {'closed' if info['closed'] else 'open'}, {info['corners']} corners",
+        f"line elements {info['line_elements']}, faces {info['faces']}, vertices {info['vertices']}",
+    ]
+    for label in ("mountain", "valley", "flat", "border"):
+        c = info["creases"][label]
+        lines.append(f"{label:<12} {c['count']:>7} edges  {c['length_mm']:>12.1f} mm")
+    w, h = info["sheet_mm"]
+    lines.append(f"sheet        {w:.1f} x {h:.1f} mm")
+    lines.append(f"penetrations {info['penetrations']}")
+    for path in info.get("written", []):
+        lines.append(f"wrote        {path}")
+    return "\n".join(lines)
+
+
+PROGRAM_SUFFIXES = {"hpgl": (".hpgl", ".plt", ".hpg"), "gcode": (".gcode", ".nc", ".gc", ".ngc")}
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    """Write the plotter program of a job for a device."""
+    from foldfab.atomic import write_text
+    from foldfab.devices import load_device
+
+    output = Path(args.output)
+    device = load_device(args.device)
+    _check_output(output, "-o", PROGRAM_SUFFIXES[device.protocol])
+    design, device, fab = _fabricate(args)
+    info = fabrication_report(fab, device)
+    write_text(output, fab.program.text)
+    info["written"] = str(output)
+    print(json.dumps(info, indent=2) if args.json else format_report(info) + f"\nwrote        {output}")
+    return 0
+
+
+def cmd_preview(args: argparse.Namespace) -> int:
+    """Render the dry run: the program read back and drawn as the machine would move."""
+    output = Path(args.output)
+    _check_output(output, "-o", (".svg",))
+    design, device, fab = _fabricate(args)
+    _write_preview(fab, device, output)
+    info = fabrication_report(fab, device)
+    info["written"] = str(output)
+    print(json.dumps(info, indent=2) if args.json else format_report(info) + f"\nwrote        {output}")
+    return 0
+
+
+def _add_fabrication_args(parser: argparse.ArgumentParser, output_help: str) -> None:
+    parser.add_argument("job", help="job file (TOML)")
+    parser.add_argument("--device", required=True, metavar="NAME",
+                        help="device profile: a built-in name, a profile in your config folder, or a .toml path")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT", help=output_help)
+    parser.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
+    _add_max_faces(parser)
+    parser.add_argument("--json", action="store_true", help="print the report as JSON")
+    _add_scale_arg(parser)
+
+
+def add_commands(sub) -> None:
+    """``foldfab design``, ``export`` and ``preview``."""
+    design = sub.add_parser("design", help="build a design: summary, FOLD, SVG, ORIPA .cp, mesh",
+                            description="Build the crease pattern and 3D model of a job file.")
+    design.add_argument("job", help="job file (TOML)")
+    design.add_argument("--fold", metavar="OUT.fold", help="write the crease pattern and folded form as FOLD")
+    design.add_argument("--svg", metavar="OUT.svg", help="write the crease pattern as SVG (Origami Simulator colours)")
+    design.add_argument("--cp", metavar="OUT.cp", help="write the crease pattern as ORIPA .cp")
+    design.add_argument("--mesh", metavar="OUT", help="write the 3D model (.stl, .obj, .ply or .glb)")
+    design.add_argument("--allow-penetration", action="store_true",
+                        help="build a design whose faces intersect, with a warning instead of an error")
+    _add_max_faces(design)
+    design.add_argument("--json", action="store_true", help="print the summary as JSON")
+    design.set_defaults(func=cmd_design)
+
+    export = sub.add_parser("export", help="write the plotter program (HPGL or G-code) for a device",
+                            description="Score and cut a design: write the program a plotter receives.")
+    _add_fabrication_args(export, "program file (.hpgl/.plt for HPGL devices, .gcode/.nc for G-code)")
+    export.set_defaults(func=cmd_export)
+
+    preview = sub.add_parser("preview", help="dry run: render what the plotter would do as SVG",
+                             description="Read the program back and draw it: strokes per layer, travel, "
+                                         "sheet, plottable area, pauses, and the time estimate.")
+    _add_fabrication_args(preview, "preview SVG file")
+    preview.set_defaults(func=cmd_preview)

@@ -1,0 +1,346 @@
+"""``foldfab queue ...``: jobs added to the persistent queue, listed, shown, cancelled, retried,
+continued after a pause, removed, and plotted by a worker (``queue run``) on its terminal."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from foldfab.cli.common import _add_max_faces, _add_scale_arg, _fabricate, _int_from
+
+
+def _queue_store(args: argparse.Namespace):
+    from foldfab.queue.store import SqliteQueueStore, default_queue_path
+
+    return SqliteQueueStore(args.queue or default_queue_path(), wait=args.wait)
+
+
+def _when(seconds: float) -> str:
+    import time
+
+    return time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(seconds))
+
+
+def cmd_queue_add(args: argparse.Namespace) -> int:
+    """Build every job now (a bad job fails here, nothing is added) and queue the snapshots."""
+    from foldfab.errors import FoldfabError
+    from foldfab.queue.store import NewJob, make_snapshot
+
+    new = []
+    for job in args.jobs:
+        design, device, fab = _fabricate(argparse.Namespace(job=job, device=args.device, scale=args.scale,
+                                                            allow_penetration=args.allow_penetration,
+                                                            max_faces=args.max_faces))
+        port = args.port or device.port
+        if not port:
+            raise FoldfabError(f"{device.name} has no port: give --port PORT (a serial port such as /dev/ttyUSB0, "
+                               f"or a simulated plotter such as sim://{device.name}), or set port in {device.source}")
+        snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
+        new.append(NewJob(snapshot, port, args.priority, args.copies))
+    store = _queue_store(args)
+    ids = iter(store.add(new))
+    for item in new:
+        numbers = [next(ids) for _ in range(item.copies)]
+        label = f"job {numbers[0]}" if len(numbers) == 1 else f"jobs {numbers[0]}-{numbers[-1]}"
+        print(f"queued {label}: {item.snapshot.name} on {item.snapshot.device} at {item.port}, "
+              f"{len(item.snapshot.program.text)} bytes, priority {item.priority} ({store.location})")
+    return 0
+
+
+def format_job_line(job) -> str:
+    """One row of ``foldfab queue list``."""
+    name = job.name if job.copies == 1 else f"{job.name} ({job.copy}/{job.copies})"
+    state = job.state + ("*" if job.cancel_requested else "")
+    port = job.port if len(job.port) <= 24 else job.port[:23] + "~"
+    return f"{job.id:>5} {state:<12} {job.priority:>4} {job.percent:>5.1f}%  {job.device:<16} {port:<24} {name}"
+
+
+def cmd_queue_list(args: argparse.Namespace) -> int:
+    """List jobs in the queue, oldest first."""
+    store = _queue_store(args)
+    jobs = store.jobs(args.state)
+    if args.json:
+        print(json.dumps([job.as_dict() for job in jobs], indent=1))
+    elif not jobs:
+        print(f"no {args.state + ' ' if args.state else ''}jobs in {store.location}")
+    else:
+        lines = [f"{'ID':>5} {'STATE':<12} {'PRI':>4} {'DONE':>6}  {'DEVICE':<16} {'PORT':<24} NAME"]
+        lines.extend(format_job_line(job) for job in jobs)
+        if any(job.cancel_requested for job in jobs):
+            lines.append("* cancel requested: the worker stops the plotter")
+        if any(len(job.port) > 24 for job in jobs):
+            lines.append("~ port shortened: foldfab queue show ID has it whole")
+        print("\n".join(lines))
+    return 0
+
+
+def format_job(job, events) -> str:
+    """``foldfab queue show``: the job and its event log."""
+    copy = f" (copy {job.copy} of {job.copies})" if job.copies > 1 else ""
+    lines = [f"job {job.id}    {job.name}{copy}",
+             f"state        {job.state}" + (" (cancel requested)" if job.cancel_requested else "")
+             + (f": {job.reason}" if job.reason else ""),
+             f"device       {job.device} at {job.port}",
+             f"priority     {job.priority}",
+             f"job file     {job.job_path} (as it was when queued)",
+             f"progress     {job.percent:.1f}% done"
+             + (f" ({job.drawn_mm:.1f} of {job.drawn_total_mm:.1f} mm drawn)" if job.drawn_total_mm else "")
+             + (f", {job.progress}" if job.progress else "")
+             + f"; {job.acked_bytes} of {job.program_bytes} bytes acknowledged",
+             f"attempts     {job.attempts}"]
+    if job.worker:
+        lines.append(f"worker       {job.worker}, lease until {_when(job.lease_expires)}")
+    lines.append("events")
+    lines.extend(f"  {_when(e.time)}  {e.kind:<11} {e.message}" for e in events)
+    return "\n".join(lines)
+
+
+def cmd_queue_show(args: argparse.Namespace) -> int:
+    """Show one job with its event log."""
+    store = _queue_store(args)
+    job, events = store.job(args.id), store.events(args.id)
+    if args.json:
+        print(json.dumps({"job": job.as_dict(), "events": [e.__dict__ for e in events]}, indent=1))
+    else:
+        print(format_job(job, events))
+    return 0
+
+
+def cmd_queue_cancel(args: argparse.Namespace) -> int:
+    """Cancel a job; a running one is stopped safely by its worker."""
+    job = _queue_store(args).cancel(args.id)
+    print(f"job {job.id}: cancel requested; worker {job.worker} stops the plotter (pen up, parked)"
+          if job.cancel_requested else f"job {job.id} cancelled")
+    return 0
+
+
+def cmd_queue_retry(args: argparse.Namespace) -> int:
+    """Queue a failed, cancelled or interrupted job again."""
+    job = _queue_store(args).retry(args.id, restart=args.restart, port=args.port)
+    where = (f"resumes at byte {job.acked_bytes} of {job.program_bytes}, before any other job at {job.port} "
+             "(--restart: from the start, new sheet)" if job.acked_bytes else "runs from the start")
+    print(f"job {job.id} queued again: {where}")
+    return 0
+
+
+def cmd_queue_continue(args: argparse.Namespace) -> int:
+    """The operator has acted at the pause (flipped the sheet): let the worker go on."""
+    job = _queue_store(args).continue_job(args.id, "foldfab queue continue")
+    print(f"job {job.id} continues on worker {job.worker}")
+    return 0
+
+
+def cmd_queue_remove(args: argparse.Namespace) -> int:
+    """Delete a job and its log."""
+    _queue_store(args).remove(args.id)
+    print(f"job {args.id} removed")
+    return 0
+
+
+def cmd_queue_clear(args: argparse.Namespace) -> int:
+    """Delete finished jobs."""
+    count = _queue_store(args).clear(["done"])
+    print(f"removed {count} done job{'s' if count != 1 else ''}")
+    return 0
+
+
+class QueueConsole:
+    """The worker's terminal: job lines, the progress display of ``foldfab plot``, and pauses
+    answered with Enter (without a terminal: ``foldfab queue continue ID``); ``rehearsal``: the
+    dry run answers pauses itself, so nothing is asked."""
+
+    def __init__(self, rehearsal: bool = False):
+        from foldfab.plotting.progress import reporter
+
+        self.report = reporter(sys.stdout)
+        self.terminal = sys.stdin.isatty()
+        self.rehearsal = rehearsal
+
+    def job_started(self, job, note: str) -> None:
+        print(f"job {job.id}: {job.name} on {job.device} at {job.port}: {note}", flush=True)
+
+    def progress(self, event) -> None:
+        self.report(event)
+
+    def paused(self, job, message: str) -> None:
+        if self.rehearsal:
+            print(f"job {job.id} pauses: {message}", flush=True)
+            return
+        how = ("press Enter to continue, or type c and Enter to cancel the job" if self.terminal
+               else f"when done, run: foldfab queue continue {job.id}")
+        print(f"job {job.id} waits: {message}\n{how}", flush=True)
+
+    def answer(self, timeout: float) -> str | None:
+        import select
+        import time
+
+        if not self.terminal:
+            time.sleep(timeout)
+            return None
+        if not select.select([sys.stdin], [], [], timeout)[0]:
+            return None
+        line = sys.stdin.readline()
+        if not line:  # end of input: from now on only foldfab queue continue answers
+            self.terminal = False
+            return None
+        return "cancel" if line.strip().lower() in ("c", "cancel") else "continue"
+
+    def job_ended(self, job, state: str, message: str) -> None:
+        print(f"job {job.id} {state}: {message}", flush=True)
+
+
+def cmd_queue_run(args: argparse.Namespace) -> int:
+    """Plot queued jobs (or rehearse them on simulated plotters with --dry-run).  SIGTERM (a service
+    manager's stop) and SIGHUP (a closed terminal) act as Ctrl-C: the tool is lifted and the job is
+    left interrupted, to resume; the handlers come first, so a signal while starting ends as cleanly."""
+    import signal
+
+    worker = []  # the Worker once it exists: a signal then stops it through events, never lost
+    signalled, rehearsing = [], [False]
+
+    def interrupt(signum, frame) -> None:
+        if worker and not worker[0].interrupting:
+            worker[0].interrupt()
+        elif signalled or rehearsing[0] or worker:  # a second signal: stop waiting for the safe stop
+            raise KeyboardInterrupt
+        else:  # while starting: noted, and acted on once the worker exists (never raised inside an import)
+            signalled.append(signum)
+
+    stops = [getattr(signal, s) for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    previous = {sig: signal.signal(sig, interrupt) for sig in stops}
+    try:
+        from foldfab.errors import FoldfabError
+        from foldfab.queue.worker import Worker, WorkerOptions, rehearse
+
+        options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
+        store, console = _queue_store(args), QueueConsole(rehearsal=args.dry_run)
+        if args.dry_run:
+            rehearsing[0] = True
+            if signalled:
+                raise KeyboardInterrupt
+        else:
+            worker.append(Worker(store, console, options))
+            if signalled:
+                worker[0].interrupt()  # its run ends before claiming anything
+        summary = rehearse(store, console, options) if args.dry_run else worker[0].run()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if not summary.ended:
+        print(f"nothing to run in {store.location}" + (" for these filters" if args.device or args.port else ""))
+        return 0
+    print("; ".join(f"{len(ids)} {state} ({', '.join(map(str, ids))})" for state, ids in summary.ended.items()))
+    trouble = {state: ids for state, ids in summary.ended.items() if state not in ("done", "cancelled")}
+    if trouble:
+        raise FoldfabError(", ".join(f"{len(ids)} job(s) {state}" for state, ids in trouble.items())
+                           + ": foldfab queue show ID says why" + ("" if args.dry_run else
+                           "; run again to resume interrupted jobs, foldfab queue retry ID a failed one"))
+    return 0
+
+
+def _seconds_from(low: float, what: str):
+    """An argparse type: a finite number of seconds, ``low`` or more."""
+    def seconds(text: str) -> float:
+        import math
+
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+        if not (math.isfinite(value) and value >= low):
+            raise argparse.ArgumentTypeError(f"{what}, got {text}")
+        return value
+    return seconds
+
+
+def _port(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a serial port or pyserial URL (such as /dev/ttyUSB0 or "
+                                         "sim://grbl), got an empty one")
+    return text
+
+
+def add_commands(sub) -> None:
+    """``foldfab queue ...``: the persistent job queue."""
+    from foldfab.queue.store import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, DEFAULT_WAIT, LEASE_HEARTBEATS, MAX_COPIES,
+                               MAX_JOB_ID, MIN_LEASE, PRIORITIES, STATES)
+
+    job_id = _int_from(1, MAX_JOB_ID, "expected a job id")
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--queue", metavar="PATH", help="queue file (default: $FOLDFAB_QUEUE, else "
+                        "$XDG_DATA_HOME/foldfab/queue.sqlite3, default ~/.local/share)")
+    common.add_argument("--wait", type=_seconds_from(0, "expected 0 seconds or more"), default=DEFAULT_WAIT,
+                        metavar="SECONDS",
+                        help=f"how long to wait while another foldfab writes the queue (default {DEFAULT_WAIT:g})")
+    queue = sub.add_parser("queue", help="a persistent job queue for one or several plotters",
+                           description="Line up sheets and let workers plot them; survives crashes and "
+                                       "pulled cables without losing or duplicating a sheet.")
+    commands = queue.add_subparsers(dest="queue_command", metavar="ACTION", required=True)
+
+    add = commands.add_parser("add", parents=[common], help="build jobs now and queue them",
+                              description="Build each job's program now (a bad job is an error here and nothing "
+                                          "is added) and queue a snapshot: later edits of the files change nothing.")
+    add.add_argument("jobs", nargs="+", metavar="JOB.toml", help="job files")
+    add.add_argument("--device", required=True, metavar="NAME", help="device profile (name or .toml path)")
+    add.add_argument("--port", type=_port, metavar="PORT",
+                     help="serial port or pyserial URL (default: the profile's port)")
+    add.add_argument("--copies", type=_int_from(1, MAX_COPIES, "expected copies"), default=1, metavar="N",
+                     help=f"sheets of each job, up to {MAX_COPIES} (default 1)")
+    add.add_argument("--priority", type=_int_from(*PRIORITIES, "expected a priority"), default=0, metavar="P",
+                     help=f"higher runs first, {PRIORITIES[0]} to {PRIORITIES[1]} (default 0)")
+    add.add_argument("--allow-penetration", action="store_true", help="queue a design whose faces intersect")
+    _add_scale_arg(add)
+    _add_max_faces(add)
+    add.set_defaults(func=cmd_queue_add)
+
+    listing = commands.add_parser("list", parents=[common], help="list jobs")
+    listing.add_argument("--state", choices=STATES, help="only jobs in this state")
+    listing.add_argument("--json", action="store_true", help="print JSON")
+    listing.set_defaults(func=cmd_queue_list)
+
+    show = commands.add_parser("show", parents=[common], help="one job and its event log")
+    show.add_argument("id", type=job_id, metavar="ID")
+    show.add_argument("--json", action="store_true", help="print JSON")
+    show.set_defaults(func=cmd_queue_show)
+
+    for name, func, text in (("cancel", cmd_queue_cancel, "cancel a job (a running one stops safely)"),
+                             ("retry", cmd_queue_retry, "queue a failed, cancelled or interrupted job again"),
+                             ("continue", cmd_queue_continue, "go on after a pause (the sheet is flipped)"),
+                             ("remove", cmd_queue_remove, "delete a job that is not running")):
+        action = commands.add_parser(name, parents=[common], help=text)
+        action.add_argument("id", type=job_id, metavar="ID")
+        action.set_defaults(func=func)
+        if name == "retry":
+            action.add_argument("--restart", action="store_true",
+                                help="from the start on a new sheet, not from the last acknowledged stroke")
+            action.add_argument("--port", type=_port, metavar="PORT", help="on this port from now on (the "
+                                "plotter's new device path, or another plotter of the same model)")
+
+    clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
+    clear.add_argument("--done", action="store_true", required=True, help="delete every done job")
+    clear.set_defaults(func=cmd_queue_clear)
+
+    run = commands.add_parser("run", parents=[common], help="plot queued jobs (a worker)",
+                              description="Plot jobs in priority and arrival order, one at a time, with the "
+                                          "progress display of foldfab plot.  Run one worker per plotter (or "
+                                          "several on one queue: they never run the same job).  A job whose "
+                                          "worker died is resumed from its last acknowledged stroke.")
+    run.add_argument("--device", metavar="NAME", help="only jobs for this device profile")
+    run.add_argument("--port", type=_port, metavar="PORT", help="only jobs for this port")
+    modes = run.add_mutually_exclusive_group()
+    modes.add_argument("--until-empty", dest="mode", action="store_const", const="until-empty",
+                       help="stop when no job is runnable (the default)")
+    modes.add_argument("--once", dest="mode", action="store_const", const="once", help="run one job at most")
+    modes.add_argument("--follow", dest="mode", action="store_const", const="follow",
+                       help="keep running, waiting for new jobs")
+    run.set_defaults(mode="until-empty")
+    run.add_argument("--dry-run", action="store_true",
+                     help="stream every runnable job (one with --once) to a simulated plotter of its device; the queue "
+                          "is not changed")
+    lease = _seconds_from(MIN_LEASE, f"expected at least {MIN_LEASE:g} seconds ({LEASE_HEARTBEATS} of the "
+                                     f"worker's heartbeats, one every {DEFAULT_HEARTBEAT:g} s)")
+    run.add_argument("--lease", type=lease, default=DEFAULT_LEASE, metavar="SECONDS",
+                     help=f"a job whose worker is silent this long is interrupted (default {DEFAULT_LEASE:g}, "
+                          f"at least {MIN_LEASE:g})")
+    run.set_defaults(func=cmd_queue_run)
