@@ -28,7 +28,8 @@ from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.estimate import estimate, move_limits, move_times, polyline_runs, travel_times
 from foldfab.fabrication.spec import fabricate, parse_fabrication
-from foldfab.programs.interpret import HPGLMachine, HPGLTokenizer, interpret
+from foldfab.programs.interpret import interpret
+from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
 from foldfab.sim import SimOptions, create_simulator, parse_options
 from foldfab.sim.pty import serve_pty
 from foldfab.plotting.transport import open_port, register_handlers
