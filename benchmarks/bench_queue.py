@@ -36,7 +36,7 @@ def fill(queue: Path, count: int) -> None:
     from foldfab.design import load_design
     from foldfab.devices import load_device
     from foldfab.fabricate import fabricate
-    from foldfab.queue.store import NewJob, SqliteQueueStore, WorkerId, make_snapshot
+    from foldfab.queue import NewJob, SqliteQueueStore, WorkerId, make_snapshot
 
     device = load_device("graphtec-ce6000")
     job = ROOT / "jobs" / "hexagon-fig8a.toml"

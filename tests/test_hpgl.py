@@ -15,7 +15,7 @@ from test_interpret import assert_round_trip, make_document, random_plans, sampl
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.hpgl import write_hpgl
-from foldfab.programs.interpret import HPGLTokenizer
+from foldfab.programs.read_hpgl import HPGLTokenizer
 from foldfab.devices import Tool
 from foldfab.fabrication.plan import Pass, PlotPlan
 from foldfab.programs.languages import write_program

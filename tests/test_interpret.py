@@ -19,8 +19,10 @@ from hypothesis import strategies as st
 from foldfab.devices import DeviceProfile, load_device
 from foldfab.programs.estimate import (axis_factors, estimate, junction_limits, move_times, plan_speeds,
                               planned_segments, segment_times, straight_runs)
-from foldfab.programs.interpret import (GcodeMachine, HPGLMachine, HPGLTokenizer, Interpretation, Stroke,
-                               Travel, interpret)
+from foldfab.programs.interpret import interpret
+from foldfab.programs.machine import Interpretation, Stroke, Travel
+from foldfab.programs.read_gcode import GcodeMachine
+from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
 from foldfab.devices import Tool
 from foldfab.fabrication.plan import Pass, Pause, PlotPlan
 from foldfab.programs.languages import write_program
@@ -426,7 +428,7 @@ def test_reading_a_gcode_line_by_the_fast_paths_gives_what_the_full_scan_gives(r
     unreadable text, repeated lines come from a cache: none of it changes what is read."""
     import re
 
-    from foldfab.programs.interpret import SUPPORTED_G, SUPPORTED_M, read_gcode_line
+    from foldfab.programs.read_gcode import SUPPORTED_G, SUPPORTED_M, read_gcode_line
 
     word = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
     comment = re.compile(r"\(([^)]*)\)?|;(.*)$")
@@ -460,7 +462,7 @@ def test_plain_coordinate_lines_are_read_as_every_line_is(lines):
     """GcodeMachine takes a line of only X, Y and F words (most of a program) without reading
     its words one by one: the same strokes, travels, pauses and problems as the full reading,
     whatever modes (relative, inches, a pending G92) the lines before have set."""
-    from foldfab.programs.interpret import read_gcode_line
+    from foldfab.programs.read_gcode import read_gcode_line
 
     device, text = load_device("grbl"), "\n".join(lines)
     frame = device.frame(device.sheet)

@@ -19,7 +19,8 @@ from hypothesis import strategies as st
 
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.programs.interpret import GcodeMachine, HPGLMachine, HPGLTokenizer
+from foldfab.programs.read_gcode import GcodeMachine
+from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
 from foldfab.plotting.progress import JobProgress
 from foldfab.plotting.resume import (PlotStopped, ResumeAmbiguous, first_undrawn, load_state, locate, locate_resume,
                             plot, resume_program)

@@ -22,8 +22,9 @@ from foldfab.cli import main
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.program import PauseMark, Program
-from foldfab.queue.store import (MIGRATIONS, SCHEMA_VERSION, NewJob, SqliteQueueStore, WorkerId,
-                           load_snapshot_device, make_snapshot)
+from foldfab.queue import NewJob, SqliteQueueStore, WorkerId, make_snapshot
+from foldfab.queue.snapshot import load_snapshot_device
+from foldfab.queue.sqlite import MIGRATIONS, SCHEMA_VERSION
 
 ROOT = Path(__file__).resolve().parent.parent
 HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
@@ -318,12 +319,12 @@ def test_upgrade_from_schema_version_1(tmp_path):
     db.executescript(MIGRATIONS[0])
     db.execute("PRAGMA user_version = 1")
     snap = snapshot()
-    from foldfab.queue.store import _program_meta
+    from foldfab.queue.snapshot import program_meta
 
     db.execute("INSERT INTO snapshots (name, job_path, device, program_bytes, program_sha256, program_meta, "
                "job_text, device_text, program) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
                (snap.name, snap.job_path, snap.device, len(snap.program.text), snap.sha256,
-                _program_meta(snap.program), snap.job_text, snap.device_text, snap.program.text))
+                program_meta(snap.program), snap.job_text, snap.device_text, snap.program.text))
     db.execute("INSERT INTO jobs (snapshot_id, port, state, created, updated, acked_bytes) "
                "VALUES (1, 'sim://a', 'interrupted', 0, 0, 4)")
     db.commit()
@@ -655,7 +656,7 @@ def test_snapshot_does_not_change_when_the_job_and_its_svg_change(tmp_path, caps
 
 class QueueMachine(RuleBasedStateMachine):
     """Any sequence of operators' and workers' actions keeps the queue's promises: the states
-    follow the transitions of :mod:`foldfab.queue.store`, a plotter runs one job at a time, a plotter
+    follow the transitions of :mod:`foldfab.queue.records`, a plotter runs one job at a time, a plotter
     with an interrupted job runs nothing else, nothing is lost but what is removed."""
 
     PORTS = ("sim://a", "sim://b")

@@ -25,7 +25,7 @@ from foldfab.fabricate import fabricate
 from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
 from foldfab.plotting.progress import JobProgress
-from foldfab.queue.store import NewJob, SqliteQueueStore, make_snapshot
+from foldfab.queue import NewJob, SqliteQueueStore, make_snapshot
 from foldfab.plotting.stream import StreamStopped
 from foldfab.queue.worker import PortUnavailable, Worker, WorkerOptions, rehearse, start_point
 
@@ -656,7 +656,7 @@ def test_flip_answered_on_the_workers_terminal(tmp_path, typed, state):
 def test_a_job_whose_last_run_failed_is_not_located():
     """A plotter error means an instruction was skipped: the plotter's position would place the
     resume past a stroke it did not draw correctly."""
-    from foldfab.queue.store import Event
+    from foldfab.queue.records import Event
     from foldfab.queue.worker import _failed_last
 
     def log(*kinds):

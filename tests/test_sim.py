@@ -29,7 +29,8 @@ from foldfab.errors import FoldfabError
 from foldfab.programs.estimate import estimate, move_limits, move_times, polyline_runs, travel_times
 from foldfab.fabricate import fabricate
 from foldfab.fabrication.spec import parse_fabrication
-from foldfab.programs.interpret import HPGLMachine, HPGLTokenizer, interpret
+from foldfab.programs.interpret import interpret
+from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
 from foldfab.sim import SimOptions, create_simulator, parse_options
 from foldfab.sim.pty import serve_pty
 from foldfab.plotting.transport import open_port, register_handlers

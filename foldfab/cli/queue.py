@@ -11,7 +11,7 @@ from foldfab.cli.common import _add_max_faces, _add_scale_arg, _fabricate, _int_
 
 
 def _queue_store(args: argparse.Namespace):
-    from foldfab.queue.store import SqliteQueueStore, default_queue_path
+    from foldfab.queue.sqlite import SqliteQueueStore, default_queue_path
 
     return SqliteQueueStore(args.queue or default_queue_path(), wait=args.wait)
 
@@ -25,7 +25,8 @@ def _when(seconds: float) -> str:
 def cmd_queue_add(args: argparse.Namespace) -> int:
     """Build every job now (a bad job fails here, nothing is added) and queue the snapshots."""
     from foldfab.errors import FoldfabError
-    from foldfab.queue.store import NewJob, make_snapshot
+    from foldfab.queue.records import NewJob
+    from foldfab.queue.snapshot import make_snapshot
 
     new = []
     for job in args.jobs:
@@ -263,8 +264,10 @@ def _port(text: str) -> str:
 
 def add_commands(sub) -> None:
     """``foldfab queue ...``: the persistent job queue."""
-    from foldfab.queue.store import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, DEFAULT_WAIT, LEASE_HEARTBEATS, MAX_COPIES,
-                               MAX_JOB_ID, MIN_LEASE, PRIORITIES, STATES)
+    from foldfab.queue.records import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, MAX_COPIES, MIN_LEASE,
+                                       PRIORITIES, STATES)
+    from foldfab.queue.sqlite import MAX_JOB_ID
+    from foldfab.queue.store import DEFAULT_WAIT
 
     job_id = _int_from(1, MAX_JOB_ID, "expected a job id")
     common = argparse.ArgumentParser(add_help=False)

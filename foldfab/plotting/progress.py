@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Callable, TextIO
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.programs.interpret import Interpretation
+    from foldfab.programs.machine import Interpretation
     from foldfab.programs.program import Program
 
 
@@ -79,7 +79,8 @@ class JobProgress:
 
     def __init__(self, program: Program, device: DeviceProfile, run: Interpretation | None = None):
         from foldfab.programs.estimate import estimate
-        from foldfab.programs.interpret import Interpretation, interpret
+        from foldfab.programs.interpret import interpret
+        from foldfab.programs.machine import Interpretation
 
         self.program = program
         run = run if run is not None else interpret(program, device)

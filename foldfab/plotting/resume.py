@@ -62,7 +62,7 @@ from foldfab.xdg import foldfab_dir
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.programs.interpret import Stroke
+    from foldfab.programs.machine import Stroke
     from foldfab.plotting.progress import ProgressEvent
     from foldfab.programs.program import Program
     from foldfab.plotting.stream import PenPosition, StreamResult, StreamStopped
@@ -406,7 +406,7 @@ def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
     """Commands restoring the tool state ``program`` has set by byte ``offset``."""
     text = program.text[:offset]
     if program.protocol == "hpgl":
-        from foldfab.programs.interpret import HPGLTokenizer
+        from foldfab.programs.read_hpgl import HPGLTokenizer
 
         tokenizer = HPGLTokenizer()
         commands = tokenizer.feed(text.encode("latin-1")) + tokenizer.close()

@@ -1029,7 +1029,7 @@ class _GrblSender(_Sender):
 
     def split(self) -> list[_Line]:
         """The program's lines with their byte ranges and what GRBL does with them."""
-        from foldfab.programs.interpret import read_gcode_line
+        from foldfab.programs.read_gcode import read_gcode_line
 
         lines, start = [], 0
         text = self.program.text
@@ -1213,7 +1213,7 @@ class _GrblSender(_Sender):
                 self.next_report()
             if self.state == "Alarm" or self.machine_position is None:
                 return None
-            from foldfab.programs.interpret import GcodeMachine
+            from foldfab.programs.read_gcode import GcodeMachine
 
             x, y, z = self.work_position()
             machine = GcodeMachine(self.device, self.device.frame(self.device.sheet), None)
@@ -1250,7 +1250,7 @@ class _GrblSender(_Sender):
     def check_position(self, index: int, offset: int) -> None:
         """At rest after program line ``index``: the status report's position must be the
         program's (by the interpreter), else a fault; ``offset`` is then verified."""
-        from foldfab.programs.interpret import GcodeMachine, read_gcode_line
+        from foldfab.programs.read_gcode import GcodeMachine, read_gcode_line
 
         if not self.lines_ or self.machine_position is None:
             return
@@ -1309,7 +1309,7 @@ class _GrblSender(_Sender):
             note = ("GRBL raised an alarm at the reset and was unlocked ($X) to lift the tool; "
                     "home it before resuming if its position may be lost")
         for raw in self.program.text[:self.program.sections[0].offset].split("\n"):
-            from foldfab.programs.interpret import read_gcode_line
+            from foldfab.programs.read_gcode import read_gcode_line
 
             if read_gcode_line(raw).words:
                 self.send_line(raw.encode("ascii") + b"\n")
@@ -1330,7 +1330,7 @@ class _GrblSender(_Sender):
     def refine_acked(self) -> None:
         """After a hold: the first answered line whose move passes through the held position
         is the one that was executing; every line before it was executed."""
-        from foldfab.programs.interpret import GcodeMachine, read_gcode_line
+        from foldfab.programs.read_gcode import GcodeMachine, read_gcode_line
 
         held = self.work_position()
         first = next((i for i, line in enumerate(self.lines_) if line.end > self.acked), None)

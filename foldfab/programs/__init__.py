@@ -2,5 +2,6 @@
 
 Takes a :class:`~foldfab.fabrication.plan.PlotPlan` and gives a
 :class:`~foldfab.programs.program.Program` in the device's language (HP-GL, G-code); reads
-programs back into strokes (:mod:`~foldfab.programs.interpret`) for time estimates and previews.
+programs back into strokes (:mod:`~foldfab.programs.interpret`, one reader per language:
+:mod:`~foldfab.programs.read_hpgl`, :mod:`~foldfab.programs.read_gcode`) for time estimates and previews.
 """

@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import DeviceProfile, Motion
-    from foldfab.programs.interpret import Interpretation
+    from foldfab.programs.machine import Interpretation
 
 CONTINUATION_ANGLE = math.radians(1.0)
 

@@ -21,7 +21,7 @@ from foldfab.programs.program import fmt_number
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.programs.interpret import Interpretation
+    from foldfab.programs.machine import Interpretation
 
 COLORS = {"mountain": "#ff0000", "valley": "#0000ff", "cut": "#000000"}
 OTHER_COLOR = "#808080"

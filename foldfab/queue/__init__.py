@@ -1,6 +1,13 @@
 """The job queue: programs waiting for plotters, and the workers that plot them.
 
-Takes fabricated jobs (program, device, sheet) and gives them to workers one plotter at a
-time (:mod:`~foldfab.queue.store`, SQLite), which stream them with leases and heartbeats
-(:mod:`~foldfab.queue.worker`) so that a killed process loses nothing.
+Takes fabricated jobs (program, device, sheet) as snapshots (:mod:`~foldfab.queue.snapshot`) and
+gives them to workers one plotter at a time (:mod:`~foldfab.queue.records`: states and records;
+:mod:`~foldfab.queue.store`: the store interface; :mod:`~foldfab.queue.sqlite`: SQLite), which stream
+them with leases and heartbeats (:mod:`~foldfab.queue.worker`) so that a killed process loses nothing.
 """
+
+from foldfab.queue.records import NewJob, WorkerId
+from foldfab.queue.snapshot import make_snapshot
+from foldfab.queue.sqlite import SqliteQueueStore, default_queue_path
+
+__all__ = ["NewJob", "SqliteQueueStore", "WorkerId", "default_queue_path", "make_snapshot"]

@@ -42,8 +42,9 @@ from functools import partial
 from typing import TYPE_CHECKING, Callable, Protocol
 
 from foldfab.errors import FoldfabError
-from foldfab.queue.store import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, QueueBusy,
-                           QueueStore, WorkerId, load_snapshot_device)
+from foldfab.queue.records import DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, WorkerId
+from foldfab.queue.snapshot import load_snapshot_device
+from foldfab.queue.store import QueueBusy, QueueStore
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile

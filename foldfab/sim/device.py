@@ -48,7 +48,7 @@ from foldfab.sim.record import JobRecord, PauseRecord, SimStats, layer_named, st
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.programs.interpret import Interpretation, Stroke
+    from foldfab.programs.machine import Interpretation, Stroke
     from foldfab.sim.options import SimOptions
 
 XON, XOFF = 0x11, 0x13

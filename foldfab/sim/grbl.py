@@ -32,14 +32,15 @@ from __future__ import annotations
 import re
 from typing import TYPE_CHECKING
 
-from foldfab.programs.interpret import GcodeLine, Interpretation, read_gcode_line
+from foldfab.programs.machine import Interpretation
+from foldfab.programs.read_gcode import GcodeLine, read_gcode_line
 from foldfab.sim.device import Simulator
 from foldfab.sim.motion import Block, Point, TimedGcode
 from foldfab.sim.record import PauseRecord
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.programs.interpret import Stroke
+    from foldfab.programs.machine import Stroke
     from foldfab.sim.options import SimOptions
 
 BANNER = "\r\nGrbl 1.1h ['$' for help]"

@@ -1,7 +1,7 @@
 """A simulated HP-GL plotter or cutter (HP 7475A, Graphtec, Roland in HP-GL mode).
 
-Parsing and drawing are foldfab's interpreter (:class:`~foldfab.programs.interpret.HPGLTokenizer`
-splitting coordinate pairs, :class:`~foldfab.programs.interpret.HPGLMachine` with timing).  The
+Parsing and drawing are foldfab's interpreter (:class:`~foldfab.programs.read_hpgl.HPGLTokenizer`
+splitting coordinate pairs, :class:`~foldfab.programs.read_hpgl.HPGLMachine` with timing).  The
 plotter reads one instruction or coordinate pair out of its buffer when the previous
 move has ended, so its buffer drains at motion speed.
 
@@ -29,13 +29,14 @@ from collections import deque
 
 from typing import TYPE_CHECKING
 
-from foldfab.programs.interpret import COORDINATE_COMMANDS, HPGLCommand, HPGLTokenizer, Interpretation
+from foldfab.programs.machine import Interpretation
+from foldfab.programs.read_hpgl import COORDINATE_COMMANDS, HPGLCommand, HPGLTokenizer
 from foldfab.sim.device import Simulator
 from foldfab.sim.motion import TimedHPGL
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.programs.interpret import Stroke
+    from foldfab.programs.machine import Stroke
     from foldfab.sim.options import SimOptions
 
 ACCEPTED_DEVICE_CONTROL = frozenset("ESC." + c for c in "@HIMNTRJ()YZ")

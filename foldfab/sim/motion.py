@@ -1,7 +1,7 @@
 """Timed execution: the interpreters' machines, with every move and pen lift as a Block.
 
-A simulator runs :class:`~foldfab.programs.interpret.HPGLMachine` or
-:class:`~foldfab.programs.interpret.GcodeMachine` with the :class:`Timed` mixin: each pen move,
+A simulator runs :class:`~foldfab.programs.read_hpgl.HPGLMachine` or
+:class:`~foldfab.programs.read_gcode.GcodeMachine` with the :class:`Timed` mixin: each pen move,
 pen down and pen up the machine makes is handed to the simulator as a :class:`Block`,
 which the simulator executes on its virtual clock.
 
@@ -39,7 +39,9 @@ from typing import Callable, Sequence
 
 from foldfab.programs.estimate import (CONTINUATION_ANGLE, junction_speeds, move_limits, move_times, plan_speeds,
                               segment_times, travel_times)
-from foldfab.programs.interpret import GcodeMachine, HPGLMachine, Stroke
+from foldfab.programs.machine import Stroke
+from foldfab.programs.read_gcode import GcodeMachine
+from foldfab.programs.read_hpgl import HPGLMachine
 
 Point = tuple[float, float]
 

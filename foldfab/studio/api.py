@@ -359,7 +359,7 @@ class Studio:
         """The session: the first job, its path, the devices and whether the queue is there."""
         from foldfab.devices import list_devices
         from foldfab.job import job_data, load_job
-        from foldfab.queue.store import default_queue_path
+        from foldfab.queue.sqlite import default_queue_path
 
         path = self.job_path or self.start_dir / "untitled.toml"
         job = job_data(_checked(load_job(path))) if self.job_path and self.job_path.is_file() else \
@@ -470,7 +470,9 @@ class Studio:
 
     def queue(self, request: dict) -> dict:
         """Build the program now and add a snapshot of it to the plot queue."""
-        from foldfab.queue.store import MAX_COPIES, PRIORITIES, NewJob, SqliteQueueStore, default_queue_path, make_snapshot
+        from foldfab.queue.records import MAX_COPIES, PRIORITIES, NewJob
+        from foldfab.queue.snapshot import make_snapshot
+        from foldfab.queue.sqlite import SqliteQueueStore, default_queue_path
 
         design, device, fab = self._fabricate(request)
         port = _field(request, "port", str, "") or device.port

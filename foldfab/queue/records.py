@@ -1,0 +1,163 @@
+"""The queue's records and states: what a queued job is, whatever store keeps it.
+
+A queued job is a **snapshot**: the job file's text, the device profile's text and
+the plotter program built from them when the job was added (its text, sections,
+pauses and SHA-256).  Editing the job file, its SVG files or the device profile
+later changes nothing queued; the program is what runs.
+
+States and transitions (every change is one ``BEGIN IMMEDIATE`` transaction)::
+
+    queued ──claim──> running ──pause──> waiting ──continue──> running
+    running ──> done | failed | cancelled | interrupted
+    waiting ──> cancelled | interrupted
+    running/waiting, lease expired or worker process gone ──> interrupted
+                                       (cancelled if a cancel was requested)
+    interrupted ──claim──> running      (resumes from the last acknowledged byte)
+    queued, interrupted ──cancel──> cancelled
+    running, waiting ──cancel──> (cancel requested; the worker stops the plotter) cancelled
+    failed, cancelled, interrupted ──retry──> queued   (a resume unless --restart or nothing
+                                                       was acknowledged)
+
+A worker holds a **lease** on its job and renews it (the heartbeat); a job whose
+lease expired, or whose worker process on this machine is gone, becomes
+interrupted at the next write to the queue.  Leases compare wall clocks, so hosts
+that share a queue need synchronized clocks (NTP).  Claims are atomic: a job runs on one
+worker, and a plotter (its port) runs one job at a time.  A plotter with an
+interrupted job (a half-drawn sheet on it) runs nothing else until that job is
+resumed, cancelled or removed; so does one with a job queued again to resume (``retry``
+without ``restart`` of a job partly acknowledged), and such resumes are claimed first.
+
+Every store (:mod:`foldfab.queue.sqlite` today) keeps these records and follows these transitions.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import socket
+from dataclasses import dataclass
+
+from foldfab.errors import FoldfabError
+from foldfab.plotting.progress import done_share
+from foldfab.queue.snapshot import Snapshot
+
+STATES = ("queued", "running", "waiting", "done", "failed", "cancelled", "interrupted")
+ACTIVE = ("running", "waiting")
+RUNNABLE = ("queued", "interrupted")
+FINISHED = ("done", "failed", "cancelled")
+DEFAULT_LEASE = 30.0
+DEFAULT_HEARTBEAT = 1.0
+"""Longest time between a worker's heartbeats (seconds)."""
+LEASE_HEARTBEATS = 5
+"""A lease lasts at least this many heartbeat intervals: one late heartbeat (a busy queue file,
+a slow disk) must not lose the job."""
+MIN_LEASE = LEASE_HEARTBEATS * DEFAULT_HEARTBEAT
+PRIORITIES = (-1000, 1000)
+"""Lowest and highest priority (the command line and the studio)."""
+MAX_COPIES = 1000
+"""Most sheets of one job a single ``add`` queues."""
+
+
+@dataclass(frozen=True)
+class NewJob:
+    """A snapshot to add ``copies`` times on ``port`` with ``priority``."""
+
+    snapshot: Snapshot
+    port: str
+    priority: int = 0
+    copies: int = 1
+
+
+@dataclass(frozen=True)
+class JobRecord:
+    """One job (one sheet) as the queue sees it."""
+
+    id: int
+    name: str
+    job_path: str
+    device: str
+    port: str
+    priority: int
+    copy: int
+    copies: int
+    state: str
+    created: float
+    updated: float
+    worker: str | None
+    lease_expires: float | None
+    acked_bytes: int
+    program_bytes: int
+    progress: str
+    pauses_done: int
+    cancel_requested: bool
+    attempts: int
+    reason: str | None
+    drawn_mm: float
+    """Length the plotter has drawn of the program's strokes (acknowledged)."""
+    drawn_total_mm: float
+    """Length of all the program's strokes; 0 until a worker has started the job."""
+
+    @property
+    def percent(self) -> float:
+        """Share done, 0..100: of the drawn length, as ``foldfab plot`` shows it (of the bytes
+        before a worker has measured it)."""
+        return 100.0 * done_share(self.drawn_mm, self.drawn_total_mm, self.acked_bytes, self.program_bytes)
+
+    def as_dict(self) -> dict:
+        """Plain data for JSON output."""
+        return {field: getattr(self, field) for field in self.__dataclass_fields__} | {
+            "percent": round(self.percent, 1)}
+
+
+@dataclass(frozen=True)
+class Event:
+    """One line of a job's log."""
+
+    time: float
+    kind: str
+    message: str
+
+
+@dataclass(frozen=True)
+class WorkerId:
+    """Who holds a lease: ``host/pid/token`` (the token tells threads of one process apart)."""
+
+    host: str
+    pid: int
+    token: str
+
+    @classmethod
+    def current(cls) -> WorkerId:
+        """A new identity for a worker in this process."""
+        return cls(socket.gethostname(), os.getpid(), secrets.token_hex(4))
+
+    def __str__(self) -> str:
+        return f"{self.host}/{self.pid}/{self.token}"
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A job a worker now holds: the record (state ``running``) and its snapshot."""
+
+    job: JobRecord
+    stored: Snapshot | None
+    """The snapshot; None when it is damaged."""
+    damage: str | None = None
+    """Why the snapshot cannot be used (its program no longer matches its SHA-256)."""
+
+    @property
+    def snapshot(self) -> Snapshot:
+        """The snapshot; FoldfabError (saying why) if it is damaged: the worker fails the job."""
+        if self.stored is None:
+            raise FoldfabError(self.damage or f"job {self.job.id}: no snapshot")
+        return self.stored
+
+
+@dataclass(frozen=True)
+class Control:
+    """What a heartbeat tells the worker: keep going, wait, stop or give up."""
+
+    state: str
+    cancel_requested: bool
+    lost: bool
+    """The job is no longer this worker's (its lease expired, or it was removed)."""
