@@ -10,6 +10,8 @@ must be given its stage here, which is the point: where it goes is a decision.
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -24,10 +26,10 @@ STAGES: list[tuple[str, tuple[str, ...]]] = [
     ("formats", ("foldfab.formats",)),                # design -> FOLD, SVG, ORIPA, meshes
     ("devices", ("foldfab.devices",)),                # plotter profiles
     ("fabrication", ("foldfab.fabrication",)),        # design + device + [fabrication] -> plot plan
-    ("programs", ("foldfab.programs",)),              # plot plan -> program text, and read back
+    ("programs", ("foldfab.programs", "foldfab.program", "foldfab.interpret")),  # plot plan -> program, read back
     ("fabricate", ("foldfab.fabricate",)),            # design -> program: the one entry point
     ("sim", ("foldfab.sim",)),                        # simulated plotters
-    ("plotting", ("foldfab.plotting", "foldfab.urlhandler")),  # program -> a machine, resume
+    ("plotting", ("foldfab.plotting", "foldfab.urlhandler")),   # program -> a machine, resume
     ("queue", ("foldfab.queue",)),                    # jobs waiting for plotters, workers
     ("studio", ("foldfab.studio",)),                  # the browser designer
     ("cli", ("foldfab.cli", "foldfab.__main__")),     # argument parsing and printing
@@ -176,3 +178,30 @@ def test_modules_are_short(module):
     lines = len(path.read_text(encoding="utf-8").splitlines())
     assert lines <= MAX_LINES or module in LONGER, \
         f"{module} has {lines} lines: split it by concept, or say in LONGER why one concept needs more"
+
+
+@pytest.mark.parametrize("old, name, new", [
+    ("foldfab.program", "write_program", "foldfab.programs.languages"),
+    ("foldfab.interpret", "interpret", "foldfab.programs.interpret"),
+    ("foldfab.urlhandler.protocol_sim", "Serial", "foldfab.plotting.urlhandler.protocol_sim"),
+])
+def test_moved_public_names_still_import_from_their_old_paths_with_a_warning(old, name, new):
+    """The README's Python API: a moved name keeps its old path for one release, and says where it went."""
+    code = (f"import warnings; warnings.simplefilter('always')\n"
+            f"with warnings.catch_warnings(record=True) as seen:\n"
+            f"    import importlib; old = importlib.import_module({old!r})\n"
+            f"import {new} as new\n"
+            f"assert getattr(old, {name!r}) is getattr(new, {name!r})\n"
+            f"assert any(w.category is DeprecationWarning and {new.rsplit('.', 1)[0]!r} in str(w.message) "
+            f"for w in seen), [str(w.message) for w in seen]\n")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=PACKAGE.parent)
+
+
+def test_sim_opens_through_the_old_handler_package():
+    """A pyserial configuration that names the old package still reaches ``sim://``."""
+    code = ("import warnings, serial; warnings.simplefilter('ignore', DeprecationWarning)\n"
+            "serial.protocol_handler_packages.append('foldfab.urlhandler')\n"
+            "port = serial.serial_for_url('sim://hp7475a?time=instant', timeout=1)\n"
+            "port.write(b'OI;'); reply = port.read_until(b'\\r')\n"
+            "assert b'7475A' in reply, reply\n")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=PACKAGE.parent)
