@@ -30,7 +30,8 @@ from pathlib import Path
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.fabrication.spec import fabricate, parse_fabrication
-from foldfab.plotting.stream import StreamStopped, stream
+from foldfab.plotting.engines.base import StreamStopped
+from foldfab.plotting.stream import stream
 from foldfab.plotting.transport import open_port
 
 ROOT = Path(__file__).resolve().parent.parent
