@@ -31,7 +31,8 @@ from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.fabricate import fabricate
 from foldfab.fabrication.spec import parse_fabrication
-from foldfab.plotting.stream import StreamStopped, stream
+from foldfab.plotting.engines.base import StreamStopped
+from foldfab.plotting.stream import stream
 from foldfab.plotting.transport import open_port
 
 ROOT = Path(__file__).resolve().parent.parent

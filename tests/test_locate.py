@@ -24,7 +24,8 @@ from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
 from foldfab.plotting.progress import JobProgress
 from foldfab.plotting.resume import (PlotStopped, ResumeAmbiguous, first_undrawn, load_state, locate, locate_resume,
                             plot, resume_program)
-from foldfab.plotting.stream import PenPosition, StreamStopped, locate_pen, stream
+from foldfab.plotting.engines.base import PenPosition, StreamStopped
+from foldfab.plotting.stream import locate_pen, stream
 from foldfab.plotting.transport import open_port
 from test_resume import FLOWS, job_for, leading_matches
 from test_stream import FAST_BAUD, JOBS, ROOT, device_for, fabricated, strokes_of

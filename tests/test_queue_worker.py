@@ -26,7 +26,7 @@ from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
 from foldfab.plotting.progress import JobProgress
 from foldfab.queue import NewJob, SqliteQueueStore, make_snapshot
-from foldfab.plotting.stream import StreamStopped
+from foldfab.plotting.engines.base import StreamStopped
 from foldfab.queue.worker import PortUnavailable, Worker, WorkerOptions, rehearse, start_point
 
 ROOT = Path(__file__).resolve().parent.parent

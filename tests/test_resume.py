@@ -25,7 +25,9 @@ from foldfab.errors import FoldfabError
 from foldfab.plotting.progress import JobProgress
 from foldfab.plotting.resume import (PlotStopped, ResumeState, check_state, load_state, plot, program_hash,
                             resume_program, save_state, state_dir)
-from foldfab.plotting.stream import LEAD, StreamStopped, stream
+from foldfab.plotting.engines.base import StreamStopped
+from foldfab.plotting.engines.hpgl import LEAD
+from foldfab.plotting.stream import stream
 from test_stream import (FAST_BAUD, JOBS, ROOT, device_for, fabricated, same_strokes, sim_port,
                          strokes_of)
 from test_stream import xonxoff_device  # noqa: F401  (a fixture)

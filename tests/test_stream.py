@@ -36,7 +36,9 @@ from foldfab.errors import FoldfabError
 from foldfab.programs.hpgl import write_hpgl
 from foldfab.fabrication.plan import Pass, PlotPlan
 from foldfab.programs.languages import write_program
-from foldfab.plotting.stream import GRBL_RX_BUFFER, StreamStopped, stream
+from foldfab.plotting.engines.base import StreamStopped
+from foldfab.plotting.engines.grbl import GRBL_RX_BUFFER
+from foldfab.plotting.stream import stream
 from foldfab.plotting.transport import open_port
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,6 +1,6 @@
 """Job progress: what the plotter has done, in millimetres, layers and seconds.
 
-The streaming engines (:mod:`foldfab.plotting.stream`) know byte offsets: how much of the
+The streaming engines (:mod:`foldfab.plotting.engines`) know byte offsets: how much of the
 program the plotter has acknowledged (executed, counted conservatively).
 :class:`JobProgress` turns an offset into what a person wants to see: drawn length
 done out of the total (from the interpreted strokes and their byte offsets), the
@@ -46,7 +46,7 @@ class ProgressEvent:
     """Layer being drawn at the acknowledged offset ("setup" before the first one)."""
     elapsed: float
     """Seconds since the job started, on the clock the plotter runs on (a ``sim://`` simulator's
-    virtual clock, else the wall clock: :func:`foldfab.plotting.stream.plotter_clock`)."""
+    virtual clock, else the wall clock: :func:`foldfab.plotting.engines.base.plotter_clock`)."""
     eta: float
     """Seconds left on the same clock: the estimate of what remains, scaled by how fast the job
     has gone so far."""

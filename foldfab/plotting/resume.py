@@ -65,7 +65,7 @@ if TYPE_CHECKING:
     from foldfab.programs.machine import Stroke
     from foldfab.plotting.progress import ProgressEvent
     from foldfab.programs.program import Program
-    from foldfab.plotting.stream import PenPosition, StreamResult, StreamStopped
+    from foldfab.plotting.engines.base import PenPosition, StreamResult, StreamStopped
 
 STATE_VERSION = 1
 TOKEN_PATTERN = re.compile(r"[0-9a-f]{6,32}")
@@ -347,7 +347,8 @@ def locate(program: Program, device: DeviceProfile, port: str, stroke: int, paus
     one that parked there) or when it places the resume at the end of the program while
     strokes are unacknowledged."""
     from foldfab.programs.interpret import interpret
-    from foldfab.plotting.stream import CHECK_EVERY, locate_pen
+    from foldfab.plotting.engines.base import CHECK_EVERY
+    from foldfab.plotting.stream import locate_pen
     from foldfab.plotting.transport import open_port
 
     strokes = interpret(program, device).strokes if strokes is None else strokes
@@ -493,7 +494,8 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
     """
     from foldfab.programs.interpret import interpret
     from foldfab.plotting.progress import JobProgress
-    from foldfab.plotting.stream import StreamStopped, stream
+    from foldfab.plotting.engines.base import StreamStopped
+    from foldfab.plotting.stream import stream
     from foldfab.plotting.transport import open_port
 
     if from_stroke is not None and resume is None:
@@ -506,7 +508,7 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
         check_state(state, program, job, device, strokes)
         first, found = _start(state, program, device, port, strokes, from_stroke, choose, settings)
         if first >= len(strokes):  # the operator says the plotter drew the rest after its host lost it
-            from foldfab.plotting.stream import StreamResult
+            from foldfab.plotting.engines.base import StreamResult
 
             if events is not None:
                 end = len(program.text)

@@ -50,7 +50,7 @@ if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
     from foldfab.plotting.progress import ProgressEvent
     from foldfab.programs.program import Program
-    from foldfab.plotting.stream import StreamStopped
+    from foldfab.plotting.engines.base import StreamStopped
 
 MODES = ("until-empty", "once", "follow")
 DRY_RUN_PORT = "sim://?time=instant"
@@ -63,7 +63,7 @@ class PortUnavailable(FoldfabError):
 
 class Runner(Protocol):
     """Plots ``program`` on ``port``; returns when it is done, raises
-    :class:`foldfab.plotting.stream.StreamStopped` when it stopped early and :class:`PortUnavailable`
+    :class:`foldfab.plotting.engines.base.StreamStopped` when it stopped early and :class:`PortUnavailable`
     when it could not start."""
 
     def __call__(self, program: Program, device: DeviceProfile, port: str, *,
@@ -367,7 +367,7 @@ class Worker:
         except PortUnavailable as exc:
             return self._end(job, heartbeat, "interrupted", f"{exc}; then run again", tracker.acked)
         except FoldfabError as exc:
-            from foldfab.plotting.stream import StreamStopped
+            from foldfab.plotting.engines.base import StreamStopped
 
             if not isinstance(exc, StreamStopped):
                 return self._end(job, heartbeat, "failed", str(exc), tracker.acked)
@@ -430,7 +430,7 @@ def rehearse(store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOpt
 
 def _rehearse_job(store: QueueStore, ui: WorkerUI, job: JobRecord, runner: Runner) -> str:
     """Rehearse one job (see :func:`rehearse`); the state it would end in."""
-    from foldfab.plotting.stream import StreamStopped
+    from foldfab.plotting.engines.base import StreamStopped
 
     try:
         snapshot = store.snapshot(job.id)
@@ -470,7 +470,7 @@ class _Tracker:
     def event(self, event: ProgressEvent) -> None:
         """Record the position; when a stroke was completed, save it before the engine goes on
         (it lets the plotter hold repeats of a pen state only past the reported stroke, so the
-        saved one must not lag: see :meth:`foldfab.plotting.stream._HPGLSender.repeats_allow`)."""
+        saved one must not lag: see :meth:`foldfab.plotting.engines.hpgl.HPGLSender.repeats_allow`)."""
         self.acked = self.start.original(event.acknowledged)
         done, self.total = self.start.stroke + event.strokes_done, self.start.stroke + event.strokes_total
         self.heartbeat.acked = self.acked
