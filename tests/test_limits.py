@@ -230,7 +230,8 @@ def test_a_program_over_the_stroke_limit_is_refused_before_it_is_cut(tmp_path):
                                          "[fabrication].max_strokes: expected a whole number")])
 def test_the_limits_in_a_job_are_checked(table, key):
     from foldfab.errors import FoldfabError
+    from foldfab.fabrication.spec import job_spec
 
     with pytest.raises(FoldfabError, match=key.replace("[", r"\[").replace("]", r"\]").replace(".", r"\.")):
-        parse_job(table + '[profile]\npoints = [[0, 0], [5, 10]]\n[trajectory]\ntemplate = "regular"\ncorners = 6\n'
-                  'radius = 40\n', "job.toml")
+        job_spec(parse_job(table + '[profile]\npoints = [[0, 0], [5, 10]]\n[trajectory]\ntemplate = "regular"\n'
+                           'corners = 6\nradius = 40\n', "job.toml"))  # as every command reads a job
