@@ -16,14 +16,14 @@ import time
 from pathlib import Path
 
 import pytest
-from processes import wait_for_handler
 
 from foldfab.cli import main
 from foldfab.devices import load_device
 from foldfab.plotting.resume import state_dir
 from foldfab.plotting.transport import open_port
+from helpers import ROOT
+from helpers.processes import wait_for_handler
 
-ROOT = Path(__file__).resolve().parent.parent
 HELIX = str(ROOT / "jobs/helix-fig12.toml")
 INSTANT = "sim://?time=instant"
 

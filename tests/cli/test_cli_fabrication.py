@@ -14,8 +14,8 @@ import pytest
 from foldfab.cli import main
 from foldfab.devices import load_device
 from foldfab.programs.interpret import interpret
+from helpers import JOBS, ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
 
 
@@ -128,7 +128,6 @@ def test_export_exit_code_in_a_real_process(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-JOBS = sorted((ROOT / "jobs").glob("*.toml"))
 DEVICE_FILES = sorted((ROOT / "devices").glob("*.toml"))
 
 

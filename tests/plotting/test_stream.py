@@ -38,9 +38,8 @@ from foldfab.fabrication.plan import Pass, PlotPlan
 from foldfab.programs.languages import write_program
 from foldfab.plotting.stream import GRBL_RX_BUFFER, StreamStopped, stream
 from foldfab.plotting.transport import open_port
+from helpers import JOBS, ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
-JOBS = sorted((ROOT / "jobs").glob("*.toml"))
 FLOWS = {"hp7475a": "escb", "graphtec-ce6000": "rtscts", "roland-gx24": "none", "grbl": "grbl"}
 SIM = "sim://?time=instant&sheet=A3"
 FAST_BAUD = 115200

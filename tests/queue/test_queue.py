@@ -24,8 +24,8 @@ from foldfab.errors import FoldfabError
 from foldfab.programs.program import PauseMark, Program
 from foldfab.queue.store import (MIGRATIONS, SCHEMA_VERSION, NewJob, SqliteQueueStore, WorkerId,
                            load_snapshot_device, make_snapshot)
+from helpers import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
 
 

@@ -20,9 +20,8 @@ from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
 from foldfab.programs.languages import write_program
 from foldfab.fabrication.scoring import _chains, crease_lines, outline_loops
+from helpers import JOBS, ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
-JOBS = sorted((ROOT / "jobs").glob("*.toml"))
 DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
 
 

@@ -14,7 +14,6 @@ import threading
 import time
 from collections import deque
 from dataclasses import replace
-from pathlib import Path
 from urllib.parse import urlencode
 
 import numpy as np
@@ -33,8 +32,8 @@ from foldfab.programs.interpret import HPGLMachine, HPGLTokenizer, interpret
 from foldfab.sim import SimOptions, create_simulator, parse_options
 from foldfab.sim.pty import serve_pty
 from foldfab.plotting.transport import open_port, register_handlers
+from helpers import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 JOB = ROOT / "jobs" / "hexagon-fig8a.toml"
 DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
 SHEET = "297x420"  # the A3 sheet of spec()

@@ -11,7 +11,6 @@ import socket
 import struct
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,8 +19,8 @@ from foldfab.design import load_design, summary
 from foldfab.job import job_data, load_job
 from foldfab.studio.api import MAX_BODY, Studio, error_cause, pack, unpack
 from foldfab.studio.server import StudioServer
+from helpers import JOB_FOLDER
 
-JOBS = Path(__file__).resolve().parent.parent / "jobs"
 PENETRATING = [[0, 0], [6, 10], [6, 0], [0, 10]]
 
 
@@ -30,7 +29,7 @@ def folder(tmp_path):
     work = tmp_path / "work"
     work.mkdir()
     for name in ("hexagon-fig8a.toml", "vase-svg.toml", "vase-profile.svg"):
-        shutil.copy(JOBS / name, work / name)
+        shutil.copy(JOB_FOLDER / name, work / name)
     return work
 
 
@@ -662,7 +661,7 @@ def test_cli_starts_the_server(tmp_path):
     import sys
     import urllib.request
 
-    shutil.copy(JOBS / "hexagon-fig8a.toml", tmp_path / "h.toml")
+    shutil.copy(JOB_FOLDER / "hexagon-fig8a.toml", tmp_path / "h.toml")
     process = subprocess.Popen([sys.executable, "-m", "foldfab", "studio", "h.toml", "--no-browser"],
                                cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
