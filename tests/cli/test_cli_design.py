@@ -12,7 +12,6 @@ import os
 import re
 import subprocess
 import sys
-import textwrap
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -22,19 +21,13 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from foldfab.cli import main
 from foldfab.design import load_design
 from helpers import JOBS, ROOT
+from helpers.cli import run, write_job
 
 SVG_NS = "{http://www.w3.org/2000/svg}"
 COLOURS = {"M": "#ff0000", "V": "#0000ff", "B": "#000000", "F": "#ffff00"}
 LABELS = {"M": "mountain", "V": "valley", "F": "flat", "B": "border"}
-
-
-def run(capsys, *argv) -> tuple[int, str, str]:
-    rc = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 def outputs(folder: Path, mesh: str = "out.stl") -> tuple[list[str], dict[str, Path]]:
@@ -58,13 +51,6 @@ def assert_one_line_error(rc: int, out: str, err: str, *fragments: str) -> str:
 def no_files_left(folder: Path) -> None:
     left = sorted(p.name for p in folder.iterdir())
     assert left == [], f"files left behind: {left}"
-
-
-def write_job(folder: Path, text: str, name: str = "job.toml") -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / name
-    path.write_text(textwrap.dedent(text), encoding="utf-8")
-    return path
 
 
 def umask() -> int:

@@ -14,15 +14,9 @@ import pytest
 from foldfab.cli import main
 from foldfab.devices import load_device
 from foldfab.programs.interpret import interpret
-from helpers import JOBS, ROOT
+from helpers import HEXAGON, JOBS, ROOT
+from helpers.cli import run
 
-HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
-
-
-def run(capsys, *args):
-    code = main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_clean_error(code, out, err, folder: Path, *needles: str):

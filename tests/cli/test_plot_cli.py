@@ -27,11 +27,7 @@ from helpers.processes import wait_for_handler
 HELIX = str(ROOT / "jobs/helix-fig12.toml")
 INSTANT = "sim://?time=instant"
 
-
-@pytest.fixture(autouse=True)
-def state_home(tmp_path, monkeypatch):
-    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
-    return tmp_path / "state"
+pytestmark = pytest.mark.usefixtures("state_home")
 
 
 def two_sided(tmp_path: Path, source: str = HELIX) -> str:

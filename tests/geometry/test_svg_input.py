@@ -26,6 +26,7 @@ from foldfab.errors import FoldfabError
 from foldfab.job import load_job
 from foldfab.geometry.svg_input import DEFAULT_TOLERANCE, read_svg_polyline
 from helpers import JOB_FOLDER
+from helpers.cli import write_job
 
 PX = 25.4 / 96  # mm per CSS pixel
 NS = 'xmlns="http://www.w3.org/2000/svg"'
@@ -561,12 +562,6 @@ def test_a_huge_transform_of_an_arc_is_an_error_without_warnings(tmp_path):
 
 
 # --------------------------------------------------------------------------- through a job file
-
-def write_job(folder: Path, text: str, name: str = "job.toml") -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / name
-    path.write_text(textwrap.dedent(text), encoding="utf-8")
-    return path
 
 
 def test_job_profile_from_svg_with_offset(tmp_path):

@@ -10,3 +10,7 @@ ROOT = Path(__file__).resolve().parent.parent.parent
 JOB_FOLDER = ROOT / "jobs"
 JOBS = sorted(JOB_FOLDER.glob("*.toml"))
 """The example jobs."""
+HEXAGON = JOB_FOLDER / "hexagon-fig8a.toml"
+"""The issue's example job: 28 strokes, quick to fabricate."""
+DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
+"""The shipped device profiles, one of each protocol and flow control."""

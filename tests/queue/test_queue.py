@@ -24,9 +24,8 @@ from foldfab.errors import FoldfabError
 from foldfab.programs.program import PauseMark, Program
 from foldfab.queue.store import (MIGRATIONS, SCHEMA_VERSION, NewJob, SqliteQueueStore, WorkerId,
                            load_snapshot_device, make_snapshot)
-from helpers import ROOT
-
-HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
+from helpers import HEXAGON, ROOT
+from helpers.cli import run as run_cli
 
 
 def snapshot(text: str = "IN;SP1;PU0,0;PD400,400;SP0;", name: str = "test job", pauses=()):
@@ -45,12 +44,6 @@ def store(tmp_path):
     store = SqliteQueueStore(tmp_path / "queue.sqlite3", wait=2.0)
     yield store
     store.close()
-
-
-def run_cli(capsys, *args: str) -> tuple[int, str, str]:
-    code = main(list(args))
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 # --- states and transitions ------------------------------------------------------------------

@@ -27,10 +27,9 @@ from foldfab.plotting.progress import JobProgress
 from foldfab.queue.store import NewJob, SqliteQueueStore, make_snapshot
 from foldfab.plotting.stream import StreamStopped
 from foldfab.queue.worker import PortUnavailable, Worker, WorkerOptions, rehearse, start_point
-from helpers import ROOT
+from helpers import HEXAGON, ROOT
 from helpers.processes import wait_for_handler
 
-HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
 
 
 def build(device_name: str, strategy: str = "force"):

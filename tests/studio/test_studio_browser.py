@@ -19,8 +19,8 @@ import pytest
 from foldfab.job import job_data, load_job
 from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
-from test_studio_api import serving
 from helpers import JOB_FOLDER
+from helpers.http import serving
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

@@ -19,7 +19,7 @@ from foldfab.job import job_data, load_job
 from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
 from helpers import JOB_FOLDER
-from test_studio_api import exchange, raw_request, refusals, responses, serving, smuggled
+from helpers.http import exchange, raw_request, refusals, responses, serving, smuggled
 
 SEED = 1717
 CASES = 300
