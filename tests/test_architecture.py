@@ -15,8 +15,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from helpers import ROOT
 
-PACKAGE = Path(__file__).resolve().parent.parent / "foldfab"
+PACKAGE = ROOT / "foldfab"
 
 STAGES: list[tuple[str, tuple[str, ...]]] = [
     ("base", ("foldfab", "foldfab.errors", "foldfab.files", "foldfab.atomic", "foldfab.xdg", "foldfab.limits")),

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import itertools
 import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -15,8 +14,9 @@ from hypothesis import strategies as st
 
 from foldfab.devices import load_device
 from foldfab.programs.estimate import move_times, travel_times
+from helpers import ROOT
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 from bench_fabrication import optimal_travel, travel_floor  # noqa: E402
 
 DEVICE = load_device("graphtec-ce6000")

@@ -17,8 +17,8 @@ from foldfab.cli import main
 from foldfab.fabrication.spec import job_spec
 from foldfab.job import load_job, parse_job
 from foldfab.limits import LENGTH_LIMIT
+from helpers import JOBS
 
-JOBS = sorted((Path(__file__).parent.parent / "jobs").glob("*.toml"))
 
 PROFILE = "[profile]\npoints = [[0, 0], [8, 10], [0, 20]]\n"
 REGULAR = '[trajectory]\ntemplate = "regular"\ncorners = 6\nradius = 40\n'

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,8 +14,8 @@ from hypothesis import strategies as st
 from foldfab.design import build_design
 from foldfab.errors import FoldfabError
 from foldfab.job import job_data, job_to_toml, load_job, parse_job, toml_text
+from helpers import JOB_FOLDER, JOBS
 
-JOBS = sorted((Path(__file__).parent.parent / "jobs").glob("*.toml"))
 
 
 def same_job(a, b) -> bool:
@@ -36,7 +35,7 @@ def test_example_jobs_round_trip(path):
 
 
 def test_svg_paths_are_rewritten_for_another_folder(tmp_path):
-    job = load_job(Path(__file__).parent.parent / "jobs" / "vase-svg.toml")
+    job = load_job(JOB_FOLDER / "vase-svg.toml")
     folder = tmp_path / "elsewhere" / "deeper"
     folder.mkdir(parents=True)
     text = job_to_toml(job, folder)
@@ -46,7 +45,7 @@ def test_svg_paths_are_rewritten_for_another_folder(tmp_path):
 
 
 def test_data_is_a_copy_with_every_table():
-    job = load_job(Path(__file__).parent.parent / "jobs" / "hexagon-fig8a.toml")
+    job = load_job(JOB_FOLDER / "hexagon-fig8a.toml")
     data = job_data(job)
     assert list(data) == ["design", "profile", "trajectory", "crease", "fabrication"]
     assert data["trajectory"] == {"template": "regular", "corners": 6, "radius": 40.0}
@@ -99,7 +98,7 @@ def _normal(value):
 
 
 def test_saved_elsewhere_builds_the_same(tmp_path):
-    job = load_job(Path(__file__).parent.parent / "jobs" / "vase-svg.toml")
+    job = load_job(JOB_FOLDER / "vase-svg.toml")
     target = tmp_path / "vase.toml"
     target.write_text(job_to_toml(job, tmp_path), encoding="utf-8")
     copied = load_job(target)

@@ -21,9 +21,8 @@ from foldfab.design import build_design
 from foldfab.errors import DesignError
 from foldfab.job import job_data, parse_job
 from foldfab.limits import MAX_FACES
+from helpers import HEXAGON
 
-ROOT = Path(__file__).resolve().parent.parent
-HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
 MEMORY = 3 * 2**30
 TIMEOUT = 120  # seconds: generous for a busy machine; a blocked reader never returns at all
 

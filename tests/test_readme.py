@@ -9,9 +9,8 @@ import shutil
 import subprocess
 import sys
 import urllib.request
-from pathlib import Path
+from helpers import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def _commands() -> list[str]:

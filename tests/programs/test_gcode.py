@@ -8,8 +8,6 @@ import re
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_interpret import (assert_round_trip, make_document, random_plans, sample_plan,
-                            servo_device)
 
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
@@ -17,6 +15,7 @@ from foldfab.programs.gcode import write_gcode
 from foldfab.devices import Tool
 from foldfab.fabrication.plan import Pass, Pause, PlotPlan
 from foldfab.programs.program import fmt_number
+from helpers.plans import assert_round_trip, make_document, random_plans, sample_plan, servo_device
 
 ALLOWED = {"G0", "G1", "G4", "G17", "G20", "G21", "G90", "G91", "G92", "M0", "M2", "M3", "M5"}
 WORD = re.compile(r"([A-Z])(-?\d+(?:\.\d{1,3})?)")

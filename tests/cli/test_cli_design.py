@@ -12,7 +12,6 @@ import os
 import re
 import subprocess
 import sys
-import textwrap
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -22,20 +21,13 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from foldfab.cli import main
 from foldfab.design import load_design
+from helpers import JOBS, ROOT
+from helpers.cli import run, write_job
 
-REPO = Path(__file__).parent.parent
-JOBS = sorted((REPO / "jobs").glob("*.toml"))
 SVG_NS = "{http://www.w3.org/2000/svg}"
 COLOURS = {"M": "#ff0000", "V": "#0000ff", "B": "#000000", "F": "#ffff00"}
 LABELS = {"M": "mountain", "V": "valley", "F": "flat", "B": "border"}
-
-
-def run(capsys, *argv) -> tuple[int, str, str]:
-    rc = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 def outputs(folder: Path, mesh: str = "out.stl") -> tuple[list[str], dict[str, Path]]:
@@ -59,13 +51,6 @@ def assert_one_line_error(rc: int, out: str, err: str, *fragments: str) -> str:
 def no_files_left(folder: Path) -> None:
     left = sorted(p.name for p in folder.iterdir())
     assert left == [], f"files left behind: {left}"
-
-
-def write_job(folder: Path, text: str, name: str = "job.toml") -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / name
-    path.write_text(textwrap.dedent(text), encoding="utf-8")
-    return path
 
 
 def umask() -> int:
@@ -242,11 +227,11 @@ def design_area(cp, without_tab: bool = False) -> float:
 # --------------------------------------------------------------------------- summary
 
 def test_summary_of_hexagon(capsys):
-    rc, out, err = run(capsys, "design", REPO / "jobs" / "hexagon-fig8a.toml")
+    rc, out, err = run(capsys, "design", ROOT / "jobs" / "hexagon-fig8a.toml")
     assert rc == 0 and err == ""
     assert "closed, 6 corners" in out
     assert re.search(r"line elements 5, faces 32, vertices 45", out)
-    design = load_design(REPO / "jobs" / "hexagon-fig8a.toml")
+    design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
     cp = design.crease_pattern
     lengths = np.linalg.norm(cp.vertices[cp.edges[:, 0]] - cp.vertices[cp.edges[:, 1]], axis=1)
     for kind, label in LABELS.items():
@@ -291,7 +276,7 @@ def test_every_example_writes_every_format(capsys, tmp_path, job):
 
 
 def test_json_and_text_agree(capsys):
-    job = REPO / "jobs" / "star.toml"
+    job = ROOT / "jobs" / "star.toml"
     _, text, _ = run(capsys, "design", job)
     _, raw, _ = run(capsys, "design", job, "--json")
     info = json.loads(raw)
@@ -304,14 +289,14 @@ def test_json_and_text_agree(capsys):
 
 
 def test_open_trajectory_summary(capsys):
-    rc, out, _ = run(capsys, "design", REPO / "jobs" / "open-wave-fig11f.toml", "--json")
+    rc, out, _ = run(capsys, "design", ROOT / "jobs" / "open-wave-fig11f.toml", "--json")
     info = json.loads(out)
     assert rc == 0 and info["closed"] is False and info["corners"] == 3
 
 
 @pytest.mark.parametrize("suffix", [".stl", ".obj", ".ply", ".glb", ".STL"])
 def test_mesh_formats(capsys, tmp_path, suffix):
-    job = REPO / "jobs" / "diamond-fig9.toml"
+    job = ROOT / "jobs" / "diamond-fig9.toml"
     target = tmp_path / f"model{suffix}"
     rc, out, err = run(capsys, "design", job, "--mesh", target)
     assert rc == 0, err
@@ -345,9 +330,9 @@ def glb_positions(path: Path) -> np.ndarray:
 def test_glb_is_y_up_in_metres(capsys, tmp_path, job):
     """Issue 18: the GLB was z-up in mm, so glTF viewers showed the column on its side, 80 m wide.
     glTF is y-up in metres: the column stands along +y, as tall in metres as it is in mm / 1000."""
-    design = load_design(REPO / "jobs" / f"{job}.toml")
+    design = load_design(ROOT / "jobs" / f"{job}.toml")
     for name in ("m.glb", "m.stl"):
-        rc, _, err = run(capsys, "design", REPO / "jobs" / f"{job}.toml", "--mesh", tmp_path / name)
+        rc, _, err = run(capsys, "design", ROOT / "jobs" / f"{job}.toml", "--mesh", tmp_path / name)
         assert rc == 0, err
     points = glb_positions(tmp_path / "m.glb")
     folded = design.crease_pattern.vertices_3d
@@ -361,7 +346,7 @@ def test_glb_is_y_up_in_metres(capsys, tmp_path, job):
 
 def test_relative_output_paths_and_file_mode(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    rc, _, err = run(capsys, "design", REPO / "jobs" / "hexagon-fig8b.toml", "--fold", "a.fold", "--cp", "a.cp")
+    rc, _, err = run(capsys, "design", ROOT / "jobs" / "hexagon-fig8b.toml", "--fold", "a.fold", "--cp", "a.cp")
     assert rc == 0, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.cp", "a.fold"]  # no stray .part file
     for name in ("a.cp", "a.fold"):
@@ -371,7 +356,7 @@ def test_relative_output_paths_and_file_mode(capsys, tmp_path, monkeypatch):
 def test_overwrites_an_existing_output(capsys, tmp_path):
     target = tmp_path / "x.fold"
     target.write_text("old")
-    rc, _, _ = run(capsys, "design", REPO / "jobs" / "star.toml", "--fold", target)
+    rc, _, _ = run(capsys, "design", ROOT / "jobs" / "star.toml", "--fold", target)
     assert rc == 0
     check_fold(json.loads(target.read_text(encoding="utf-8")))
 
@@ -697,7 +682,7 @@ def test_missing_job_file(capsys, tmp_path):
 
 @pytest.mark.parametrize("name", ["out.dxf", "out", "out.stl.bak"])
 def test_bad_mesh_extension(capsys, tmp_path, name):
-    rc, out, err = run(capsys, "design", REPO / "jobs" / "star.toml", "--fold", tmp_path / "a.fold",
+    rc, out, err = run(capsys, "design", ROOT / "jobs" / "star.toml", "--fold", tmp_path / "a.fold",
                        "--mesh", tmp_path / name)
     assert_one_line_error(rc, out, err, "--mesh", "unknown mesh format", ".stl, .obj, .ply, .glb")
     no_files_left(tmp_path)
@@ -709,7 +694,7 @@ def test_output_folder_missing(capsys, tmp_path, kind):
     missing = tmp_path / "no" / "such"
     i = args.index(f"--{kind}")
     args[i + 1] = str(missing / paths[kind].name)
-    line = assert_one_line_error(*run(capsys, "design", REPO / "jobs" / "star.toml", *args), f"--{kind}", "does not exist")
+    line = assert_one_line_error(*run(capsys, "design", ROOT / "jobs" / "star.toml", *args), f"--{kind}", "does not exist")
     assert str(missing) in line
     no_files_left(tmp_path)
 
@@ -717,7 +702,7 @@ def test_output_folder_missing(capsys, tmp_path, kind):
 def test_output_path_is_a_folder(capsys, tmp_path):
     # The first files are written before the third fails: none of them may stay.
     (tmp_path / "taken.cp").mkdir()
-    rc, out, err = run(capsys, "design", REPO / "jobs" / "star.toml", "--fold", tmp_path / "a.fold",
+    rc, out, err = run(capsys, "design", ROOT / "jobs" / "star.toml", "--fold", tmp_path / "a.fold",
                        "--svg", tmp_path / "a.svg", "--cp", tmp_path / "taken.cp")
     assert_one_line_error(rc, out, err, "--cp", "taken.cp", "is a folder")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["taken.cp"]
@@ -729,7 +714,7 @@ def test_a_failed_write_keeps_the_files_that_were_there(capsys, tmp_path):
     (tmp_path / "keep.fold").write_text("previous fold")
     (tmp_path / "keep.cp").write_text("previous cp")
     (tmp_path / "full.svg").symlink_to("/dev/full")  # a device, written in place: no room on it
-    rc, out, err = run(capsys, "design", REPO / "jobs" / "star.toml", "--fold", tmp_path / "keep.fold",
+    rc, out, err = run(capsys, "design", ROOT / "jobs" / "star.toml", "--fold", tmp_path / "keep.fold",
                        "--svg", tmp_path / "full.svg", "--cp", tmp_path / "keep.cp")
     assert_one_line_error(rc, out, err, "--svg", "full.svg", "cannot write: No space left on device")
     assert (tmp_path / "keep.fold").read_text() == "previous fold"
@@ -753,7 +738,7 @@ def test_real_process_error(tmp_path):
 
 def test_real_process_write_error(tmp_path):
     (tmp_path / "dir.svg").mkdir()
-    result = subprocess.run([sys.executable, "-m", "foldfab", "design", str(REPO / "jobs" / "star.toml"),
+    result = subprocess.run([sys.executable, "-m", "foldfab", "design", str(ROOT / "jobs" / "star.toml"),
                              "--fold", "a.fold", "--svg", "dir.svg"],
                             capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert result.returncode == 2
@@ -762,7 +747,7 @@ def test_real_process_write_error(tmp_path):
 
 
 def test_real_process_success(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "foldfab", "design", str(REPO / "jobs" / "hexagon-fig8a.toml"),
+    result = subprocess.run([sys.executable, "-m", "foldfab", "design", str(ROOT / "jobs" / "hexagon-fig8a.toml"),
                              "--fold", "h.fold", "--json"],
                             capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert result.returncode == 0, result.stderr

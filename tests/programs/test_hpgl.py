@@ -10,7 +10,6 @@ from dataclasses import replace
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_interpret import assert_round_trip, make_document, random_plans, sample_plan
 
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
@@ -19,6 +18,7 @@ from foldfab.programs.read_hpgl import HPGLTokenizer
 from foldfab.devices import Tool
 from foldfab.fabrication.plan import Pass, PlotPlan
 from foldfab.programs.languages import write_program
+from helpers.plans import assert_round_trip, make_document, random_plans, sample_plan
 
 HPGL_DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24"]
 

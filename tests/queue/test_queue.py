@@ -25,9 +25,8 @@ from foldfab.programs.program import PauseMark, Program
 from foldfab.queue import NewJob, SqliteQueueStore, WorkerId, make_snapshot
 from foldfab.queue.snapshot import load_snapshot_device
 from foldfab.queue.sqlite import MIGRATIONS, SCHEMA_VERSION
-
-ROOT = Path(__file__).resolve().parent.parent
-HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
+from helpers import HEXAGON, ROOT
+from helpers.cli import run as run_cli
 
 
 def snapshot(text: str = "IN;SP1;PU0,0;PD400,400;SP0;", name: str = "test job", pauses=()):
@@ -46,12 +45,6 @@ def store(tmp_path):
     store = SqliteQueueStore(tmp_path / "queue.sqlite3", wait=2.0)
     yield store
     store.close()
-
-
-def run_cli(capsys, *args: str) -> tuple[int, str, str]:
-    code = main(list(args))
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 # --- states and transitions ------------------------------------------------------------------

@@ -25,8 +25,9 @@ from foldfab.design import load_design, profile_points, trajectory_points
 from foldfab.errors import FoldfabError
 from foldfab.job import load_job
 from foldfab.geometry.svg_input import DEFAULT_TOLERANCE, read_svg_polyline
+from helpers import JOB_FOLDER
+from helpers.cli import write_job
 
-JOBS = Path(__file__).resolve().parent.parent / "jobs"
 PX = 25.4 / 96  # mm per CSS pixel
 NS = 'xmlns="http://www.w3.org/2000/svg"'
 
@@ -78,7 +79,7 @@ def test_y_flip_top_of_page_is_highest_v(tmp_path):
 
 
 def test_example_vase_profile_starts_at_the_bottom(tmp_path):
-    pts = read(Path(__file__).parent.parent / "jobs" / "vase-profile.svg", path="profile", tolerance=0.05)
+    pts = read(JOB_FOLDER / "vase-profile.svg", path="profile", tolerance=0.05)
     np.testing.assert_allclose(pts[0], [0, 0], atol=1e-9)
     np.testing.assert_allclose(pts[-1], [2, 70], atol=1e-9)
     assert len(pts) > 10  # a curve, cut into many chords
@@ -441,7 +442,7 @@ def test_reading_svg_leaves_scipy_integrate_unloaded_and_svgpathtools_whole():
         import sys
         from pathlib import Path
         from foldfab.geometry.svg_input import read_svg_polyline
-        read_svg_polyline(Path({str(JOBS / "vase-profile.svg")!r}), "profile", samples=50)
+        read_svg_polyline(Path({str(JOB_FOLDER / "vase-profile.svg")!r}), "profile", samples=50)
         print("scipy.integrate" in sys.modules)
         import svgpathtools
         print(svgpathtools.CubicBezier(0, 100j, 100 + 100j, 100).length(), "scipy.integrate" in sys.modules)
@@ -561,12 +562,6 @@ def test_a_huge_transform_of_an_arc_is_an_error_without_warnings(tmp_path):
 
 
 # --------------------------------------------------------------------------- through a job file
-
-def write_job(folder: Path, text: str, name: str = "job.toml") -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / name
-    path.write_text(textwrap.dedent(text), encoding="utf-8")
-    return path
 
 
 def test_job_profile_from_svg_with_offset(tmp_path):

@@ -16,22 +16,18 @@ import time
 from pathlib import Path
 
 import pytest
-from processes import wait_for_handler
 
 from foldfab.cli import main
 from foldfab.devices import load_device
 from foldfab.plotting.resume import state_dir
 from foldfab.plotting.transport import open_port
+from helpers import ROOT
+from helpers.processes import wait_for_handler
 
-ROOT = Path(__file__).resolve().parent.parent
 HELIX = str(ROOT / "jobs/helix-fig12.toml")
 INSTANT = "sim://?time=instant"
 
-
-@pytest.fixture(autouse=True)
-def state_home(tmp_path, monkeypatch):
-    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
-    return tmp_path / "state"
+pytestmark = pytest.mark.usefixtures("state_home")
 
 
 def two_sided(tmp_path: Path, source: str = HELIX) -> str:

@@ -20,10 +20,9 @@ from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
 from foldfab.programs.languages import write_program
 from foldfab.fabrication.scoring import _chains, crease_lines, outline_loops
+from helpers import DEVICES, JOBS, ROOT
+from helpers.plans import spec
 
-ROOT = Path(__file__).resolve().parent.parent
-JOBS = sorted((ROOT / "jobs").glob("*.toml"))
-DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
 
 
 def crease_segments(cp, kind: str) -> np.ndarray:
@@ -136,12 +135,6 @@ def test_chains_pair_the_straightest_edges_at_a_vertex(angles, rng):
     lines = _chains(np.array(edges, dtype=np.intp), np.array(points))
     assert len(lines) == len(angles)
     assert _straight_strokes(lines)
-
-
-def spec(**kw):
-    base = {"sheet": "A3", "margin": 5, "scale": 0.4}
-    base.update(kw)
-    return parse_fabrication(base, "test")
 
 
 def _dist_to_segments(points: np.ndarray, segs: np.ndarray) -> np.ndarray:

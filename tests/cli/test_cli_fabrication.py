@@ -14,15 +14,9 @@ import pytest
 from foldfab.cli import main
 from foldfab.devices import load_device
 from foldfab.programs.interpret import interpret
+from helpers import HEXAGON, JOBS, ROOT
+from helpers.cli import run
 
-ROOT = Path(__file__).resolve().parent.parent
-HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
-
-
-def run(capsys, *args):
-    code = main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_clean_error(code, out, err, folder: Path, *needles: str):
@@ -128,7 +122,6 @@ def test_export_exit_code_in_a_real_process(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-JOBS = sorted((ROOT / "jobs").glob("*.toml"))
 DEVICE_FILES = sorted((ROOT / "devices").glob("*.toml"))
 
 

@@ -27,9 +27,9 @@ from foldfab.plotting.resume import (PlotStopped, ResumeAmbiguous, first_undrawn
 from foldfab.plotting.engines.base import PenPosition, StreamStopped
 from foldfab.plotting.stream import locate_pen, stream
 from foldfab.plotting.transport import open_port
-from test_resume import FLOWS, job_for, leading_matches
-from test_stream import FAST_BAUD, JOBS, ROOT, device_for, fabricated, strokes_of
-from test_stream import xonxoff_device  # noqa: F401  (a fixture)
+from helpers import JOBS, ROOT
+from helpers.resumes import FLOWS, job_for, leading_matches
+from helpers.streams import FAST_BAUD, device_for, fabricated, strokes_of
 
 HPGL_FLOWS = ["escb", "rtscts", "none", "xonxoff"]
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,9 +14,8 @@ from foldfab.geometry.crease_pattern import build_crease_pattern
 from foldfab.design import load_design
 from foldfab.errors import DesignError
 from foldfab.geometry.reflection import reflect
-from invariants import assert_design_invariants
-
-JOBS = sorted((Path(__file__).parent.parent / "jobs").glob("*.toml"))
+from helpers import JOB_FOLDER, JOBS
+from helpers.invariants import assert_design_invariants
 
 
 @pytest.mark.parametrize("job", JOBS, ids=[j.stem for j in JOBS])
@@ -74,7 +72,7 @@ def test_diamond_degenerates_exactly_at_critical_offset(n):
 
 def test_line_element_alternates_mountain_and_valley():
     """A profile ridge folds one way outside and the other way inside: reflection flips the paper."""
-    design = load_design(Path(__file__).parent.parent / "jobs" / "hexagon-fig8b.toml")
+    design = load_design(JOB_FOLDER / "hexagon-fig8b.toml")
     cp = design.crease_pattern
     horizontal = cp.vertices[cp.edges[:, 0], 1] == cp.vertices[cp.edges[:, 1], 1]
     ridge = horizontal & np.isclose(cp.vertices[cp.edges[:, 0], 1], design.grid.arc[1])

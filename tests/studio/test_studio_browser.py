@@ -19,14 +19,14 @@ import pytest
 from foldfab.job import job_data, load_job
 from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
-from test_studio_api import serving
+from helpers import JOB_FOLDER
+from helpers.http import serving
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
                  "--enable-unsafe-swiftshader"]
 TIMEOUT_MS = 20_000
-JOBS = Path(__file__).resolve().parent.parent / "jobs"
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +55,7 @@ def browser(playwright):
 
 @pytest.fixture
 def folder(tmp_path):
-    shutil.copy(JOBS / "hexagon-fig8a.toml", tmp_path / "hexagon.toml")
+    shutil.copy(JOB_FOLDER / "hexagon-fig8a.toml", tmp_path / "hexagon.toml")
     return tmp_path
 
 

@@ -7,13 +7,13 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from test_interpret import sample_plan
 
 from foldfab.devices import load_device
 from foldfab.programs.estimate import estimate
 from foldfab.programs.interpret import interpret
 from foldfab.programs.preview import COLORS, render_preview
 from foldfab.programs.languages import write_program
+from helpers.plans import sample_plan
 
 SVG = "{http://www.w3.org/2000/svg}"
 

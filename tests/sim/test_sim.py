@@ -14,7 +14,6 @@ import threading
 import time
 from collections import deque
 from dataclasses import replace
-from pathlib import Path
 from urllib.parse import urlencode
 
 import numpy as np
@@ -28,23 +27,18 @@ from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.estimate import estimate, move_limits, move_times, polyline_runs, travel_times
 from foldfab.fabricate import fabricate
-from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
 from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
 from foldfab.sim import SimOptions, create_simulator, parse_options
 from foldfab.sim.pty import serve_pty
 from foldfab.plotting.transport import open_port, register_handlers
+from helpers import DEVICES, ROOT
+from helpers.plans import spec
 
-ROOT = Path(__file__).resolve().parent.parent
 JOB = ROOT / "jobs" / "hexagon-fig8a.toml"
-DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
 SHEET = "297x420"  # the A3 sheet of spec()
 LONG = {"layers": {"valley": {"passes": 8}, "mountain": {"passes": 8}, "cut": {"passes": 4}}}
 BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
-
-
-def spec(**extra):
-    return parse_fabrication({"sheet": "A3", "margin": 5, "scale": 0.4, **extra}, "test")
 
 
 _FABS: dict = {}

@@ -17,7 +17,6 @@ import threading
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from foldfab.devices import load_device
@@ -28,24 +27,11 @@ from foldfab.plotting.resume import (PlotStopped, ResumeState, check_state, load
 from foldfab.plotting.engines.base import StreamStopped
 from foldfab.plotting.engines.hpgl import LEAD
 from foldfab.plotting.stream import stream
-from test_stream import (FAST_BAUD, JOBS, ROOT, device_for, fabricated, same_strokes, sim_port,
-                         strokes_of)
-from test_stream import xonxoff_device  # noqa: F401  (a fixture)
+from helpers import JOBS, ROOT
+from helpers.resumes import FLOWS, job_for, leading_matches
+from helpers.streams import FAST_BAUD, fabricated, same_strokes, sim_port, strokes_of
 
-FLOWS = {"escb": "hp7475a", "rtscts": "graphtec-ce6000", "none": "roland-gx24", "grbl": "grbl",
-         "xonxoff": "xonxoff"}
-VASE = str(ROOT / "jobs/vase-svg.toml")
-
-
-@pytest.fixture(autouse=True)
-def state_home(tmp_path, monkeypatch):
-    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
-    return tmp_path / "state"
-
-
-def job_for(name, xonxoff_device, job=VASE, strategy="force"):
-    device = device_for(name, xonxoff_device)
-    return device, fabricated(job, xonxoff_device if name == "xonxoff" else name, strategy)
+pytestmark = pytest.mark.usefixtures("state_home")
 
 
 # --- resume_program ------------------------------------------------------------------------------
@@ -96,20 +82,6 @@ def test_resume_program_refuses_a_stroke_that_does_not_exist():
 
 
 # --- faults: a clear message, the tool up, a resume that completes the drawing ------------------
-
-
-def leading_matches(drawn, wanted) -> int:
-    """How many strokes at the start of ``drawn`` are the program's: exactly, except that the
-    last may go on (an HP-GL error that skips the pen-up after a stroke extends it)."""
-    count = 0
-    for got, want in zip(drawn, wanted):
-        if len(got.points) < len(want.points) or \
-                not np.allclose(got.points[:len(want.points)], want.points, atol=1e-6):
-            break
-        count += 1
-        if len(got.points) > len(want.points):
-            break
-    return count
 
 
 def strokes_in(program, device, start: int, end: int) -> int:

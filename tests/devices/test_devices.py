@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 from foldfab.devices import list_devices, load_device, parse_sheet
 from foldfab.errors import FoldfabError
 from foldfab.devices import Tool
+from helpers import ROOT
 
 SHIPPED = ["graphtec-ce6000", "grbl", "hp7475a", "roland-gx24"]
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_shipped_profiles_load():

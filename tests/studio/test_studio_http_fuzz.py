@@ -18,7 +18,8 @@ import time
 from foldfab.job import job_data, load_job
 from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
-from test_studio_api import JOBS, exchange, raw_request, refusals, responses, serving, smuggled
+from helpers import JOB_FOLDER
+from helpers.http import exchange, raw_request, refusals, responses, serving, smuggled
 
 SEED = 1717
 CASES = 300
@@ -64,7 +65,7 @@ def refused_case(server: StudioServer, inner: bytes, rng: random.Random) -> tupl
 
 
 def test_fuzzed_requests_are_never_answered_when_they_should_be_refused(tmp_path):
-    (tmp_path / "hexagon.toml").write_bytes((JOBS / "hexagon-fig8a.toml").read_bytes())
+    (tmp_path / "hexagon.toml").write_bytes((JOB_FOLDER / "hexagon-fig8a.toml").read_bytes())
     hexagon = job_data(load_job(tmp_path / "hexagon.toml"))
     rng = random.Random(SEED)
     with serving(StudioServer(Studio(tmp_path, tmp_path / "hexagon.toml"))) as server:

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from processes import wait_for_handler
 
 from foldfab.cli import main
 from foldfab.design import load_design
@@ -28,9 +27,9 @@ from foldfab.plotting.progress import JobProgress
 from foldfab.queue import NewJob, SqliteQueueStore, make_snapshot
 from foldfab.plotting.engines.base import StreamStopped
 from foldfab.queue.worker import PortUnavailable, Worker, WorkerOptions, rehearse, start_point
+from helpers import HEXAGON, ROOT
+from helpers.processes import wait_for_handler
 
-ROOT = Path(__file__).resolve().parent.parent
-HEXAGON = ROOT / "jobs" / "hexagon-fig8a.toml"
 
 
 def build(device_name: str, strategy: str = "force"):

@@ -1,0 +1,106 @@
+"""Streaming to the simulated plotters: fabrications of the example jobs, ports on ``sim://``
+wrapped in a :class:`Spy`, the strokes a program draws, and the HP 7475A set to XON/XOFF."""
+
+from __future__ import annotations
+
+import functools
+import re
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from foldfab.design import load_design
+from foldfab.devices import load_device
+from foldfab.fabricate import fabricate
+from foldfab.fabrication.spec import parse_fabrication
+from foldfab.plotting.transport import open_port
+from foldfab.programs.interpret import interpret
+from helpers import ROOT
+
+
+FLOWS = {"hp7475a": "escb", "graphtec-ce6000": "rtscts", "roland-gx24": "none", "grbl": "grbl"}
+SIM = "sim://?time=instant&sheet=A3"
+FAST_BAUD = 115200
+"""Host and simulated wire run at this rate where a test is about correctness, not timing:
+the XON/XOFF and RTS/CTS senders pace their writes at the line rate in wall time."""
+
+
+def xonxoff_profile(folder: Path) -> Path:
+    """The HP 7475A set to XON/XOFF (its other handshake), as a profile file."""
+    text = (ROOT / "devices" / "hp7475a.toml").read_text()
+    text = text.replace('name = "hp7475a"', 'name = "hp7475a-xonxoff"')
+    text = text.replace("xonxoff = false", "xonxoff = true")
+    text = re.sub(r'flow_control = "escb".*', 'flow_control = "xonxoff"', text)
+    path = folder / "hp7475a-xonxoff.toml"
+    path.write_text(text)
+    return path
+
+
+def device_for(name: str, xonxoff_device: str):
+    return load_device(xonxoff_device if name == "xonxoff" else name)
+
+
+@functools.lru_cache(maxsize=None)
+def fabricated(job: str, device: str, strategy: str = "force"):
+    """The fabrication of ``job`` on ``device`` (A3, scale 0.4: every example job fits)."""
+    spec = parse_fabrication({"sheet": "A3", "margin": 5, "scale": 0.4, "strategy": strategy}, "test")
+    return fabricate(load_design(job), load_device(device), spec)
+
+
+def strokes_of(program, device):
+    return interpret(program, device, (297.0, 420.0)).strokes
+
+
+def same_strokes(got, want, atol: float = 1e-6) -> bool:
+    """Same strokes in the same order: points, tool, force, speed."""
+    return len(got) == len(want) and all(
+        a.points.shape == b.points.shape and np.allclose(a.points, b.points, atol=atol)
+        and (a.pen, a.force, a.pen_down) == (b.pen, b.force, b.pen_down)
+        and a.speed == pytest.approx(b.speed) for a, b in zip(got, want))
+
+
+class Spy:
+    """A port that checks every write is ``bytes`` and counts GRBL's unacknowledged bytes."""
+
+    def __init__(self, port, grbl: bool = False):
+        object.__setattr__(self, "_port", port)
+        object.__setattr__(self, "_grbl", grbl)
+        object.__setattr__(self, "written", bytearray())
+        object.__setattr__(self, "_lines", deque())
+        object.__setattr__(self, "_replies", bytearray())
+        object.__setattr__(self, "max_in_flight", 0)
+
+    def __getattr__(self, name):
+        return getattr(self._port, name)
+
+    def __setattr__(self, name, value):
+        setattr(self._port, name, value)
+
+    def write(self, data):
+        assert type(data) is bytes, f"wrote {type(data).__name__}, not bytes"
+        self.written.extend(data)
+        if self._grbl:
+            if data == b"\x18":
+                self._lines.clear()
+            elif data not in (b"?", b"!", b"~"):
+                self._lines.extend(len(line) + 1 for line in data.split(b"\n")[:-1])
+                object.__setattr__(self, "max_in_flight", max(self.max_in_flight, sum(self._lines)))
+        return self._port.write(data)
+
+    def read(self, size=1):
+        data = self._port.read(size)
+        if self._grbl:
+            self._replies.extend(data)
+            *lines, rest = bytes(self._replies).split(b"\r\n")
+            self._replies[:] = rest
+            for line in lines:
+                if (line == b"ok" or line.startswith(b"error:")) and self._lines:
+                    self._lines.popleft()
+        return data
+
+
+def sim_port(device, options: str = "", baudrate: int | None = None, **kw) -> Spy:
+    port = open_port(f"{SIM}&{options}" if options else SIM, device, baudrate=baudrate, **kw)
+    return Spy(port, grbl=device.protocol == "gcode")
