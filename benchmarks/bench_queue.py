@@ -36,7 +36,9 @@ def fill(queue: Path, count: int) -> None:
     from foldfab.design import load_design
     from foldfab.devices import load_device
     from foldfab.fabricate import fabricate
-    from foldfab.queue import NewJob, SqliteQueueStore, WorkerId, make_snapshot
+    from foldfab.queue.records import NewJob, WorkerId
+    from foldfab.queue.snapshot import make_snapshot
+    from foldfab.queue.sqlite import SqliteQueueStore
 
     device = load_device("graphtec-ce6000")
     job = ROOT / "jobs" / "hexagon-fig8a.toml"

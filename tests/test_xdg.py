@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from foldfab.devices.load import _user_dir
-from foldfab.queue import default_queue_path
+from foldfab.queue.sqlite import default_queue_path
 from foldfab.plotting.resume import state_dir
 from foldfab.xdg import foldfab_dir
 

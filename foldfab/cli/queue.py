@@ -264,9 +264,8 @@ def _port(text: str) -> str:
 
 def add_commands(sub) -> None:
     """``foldfab queue ...``: the persistent job queue."""
-    from foldfab.queue.records import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, MAX_COPIES, MIN_LEASE,
-                                       PRIORITIES, STATES)
-    from foldfab.queue.sqlite import MAX_JOB_ID
+    from foldfab.queue.records import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, MAX_COPIES, MAX_JOB_ID,
+                                       MIN_LEASE, PRIORITIES, STATES)
     from foldfab.queue.store import DEFAULT_WAIT
 
     job_id = _int_from(1, MAX_JOB_ID, "expected a job id")

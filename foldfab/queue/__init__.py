@@ -4,10 +4,7 @@ Takes fabricated jobs (program, device, sheet) as snapshots (:mod:`~foldfab.queu
 gives them to workers one plotter at a time (:mod:`~foldfab.queue.records`: states and records;
 :mod:`~foldfab.queue.store`: the store interface; :mod:`~foldfab.queue.sqlite`: SQLite), which stream
 them with leases and heartbeats (:mod:`~foldfab.queue.worker`) so that a killed process loses nothing.
+
+Import from the modules: this package imports nothing, so that the command line's parser can read
+the queue's limits (:mod:`~foldfab.queue.records`) without loading a store.
 """
-
-from foldfab.queue.records import NewJob, WorkerId
-from foldfab.queue.snapshot import make_snapshot
-from foldfab.queue.sqlite import SqliteQueueStore, default_queue_path
-
-__all__ = ["NewJob", "SqliteQueueStore", "WorkerId", "default_queue_path", "make_snapshot"]

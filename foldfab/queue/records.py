@@ -56,6 +56,8 @@ PRIORITIES = (-1000, 1000)
 """Lowest and highest priority (the command line and the studio)."""
 MAX_COPIES = 1000
 """Most sheets of one job a single ``add`` queues."""
+MAX_JOB_ID = 2 ** 63 - 1
+"""The largest job id: the largest 64-bit signed integer, SQLite's and PostgreSQL's ``bigint``."""
 
 
 @dataclass(frozen=True)

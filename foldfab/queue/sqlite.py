@@ -19,15 +19,11 @@ from pathlib import Path
 from typing import Iterator, Sequence
 
 from foldfab.errors import FoldfabError
-from foldfab.queue.records import (ACTIVE, FINISHED, MAX_COPIES, PRIORITIES, RUNNABLE, Claim, Control, Event,
-                                   JobRecord, NewJob, WorkerId)
+from foldfab.queue.records import (ACTIVE, FINISHED, MAX_COPIES, MAX_JOB_ID, PRIORITIES, RUNNABLE, Claim, Control,
+                                   Event, JobRecord, NewJob, WorkerId)
 from foldfab.queue.snapshot import Snapshot, drawn_length, program_from, program_meta
 from foldfab.queue.store import DEFAULT_WAIT, QueueBusy
 from foldfab.xdg import foldfab_dir
-
-MAX_JOB_ID = 2 ** 63 - 1
-"""SQLite's largest integer."""
-
 
 def default_queue_path() -> Path:
     """``$FOLDFAB_QUEUE``, else ``$XDG_DATA_HOME/foldfab/queue.sqlite3`` (default ``~/.local/share``)."""

@@ -22,7 +22,9 @@ from foldfab.cli import main
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.program import PauseMark, Program
-from foldfab.queue import NewJob, SqliteQueueStore, WorkerId, make_snapshot
+from foldfab.queue.records import NewJob, WorkerId
+from foldfab.queue.snapshot import make_snapshot
+from foldfab.queue.sqlite import SqliteQueueStore
 from foldfab.queue.snapshot import load_snapshot_device
 from foldfab.queue.sqlite import MIGRATIONS, SCHEMA_VERSION
 from helpers import HEXAGON, ROOT

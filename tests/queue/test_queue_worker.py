@@ -24,7 +24,9 @@ from foldfab.fabricate import fabricate
 from foldfab.fabrication.spec import parse_fabrication
 from foldfab.programs.interpret import interpret
 from foldfab.plotting.progress import JobProgress
-from foldfab.queue import NewJob, SqliteQueueStore, make_snapshot
+from foldfab.queue.records import NewJob
+from foldfab.queue.snapshot import make_snapshot
+from foldfab.queue.sqlite import SqliteQueueStore
 from foldfab.plotting.engines.base import StreamStopped
 from foldfab.queue.worker import PortUnavailable, Worker, WorkerOptions, rehearse, start_point
 from helpers import HEXAGON, ROOT

@@ -302,7 +302,7 @@ def test_preview(studio, hexagon):
 
 
 def test_queue_add(studio, hexagon, tmp_path, monkeypatch):
-    from foldfab.queue import SqliteQueueStore
+    from foldfab.queue.sqlite import SqliteQueueStore
 
     monkeypatch.setenv("FOLDFAB_QUEUE", str(tmp_path / "queue.sqlite3"))
     status, answer = call(studio, "/api/queue", {"job": hexagon, "device": "grbl", "port": "sim://grbl", "copies": 2})
