@@ -204,4 +204,4 @@ class TimedGcode(Timed, GcodeMachine):
     """G-code machine with timed blocks; a servo pen moves during the program's ``G4`` dwell."""
 
     def lift_duration(self) -> float:
-        return 0.0 if self.servo else self.device.motion.pen_lift_time
+        return 0.0 if self.servo or self.laser else self.device.motion.pen_lift_time
