@@ -11,7 +11,8 @@ A laser (``[gcode] tool = "laser"``, GRBL's laser mode ``$32=1``) has no Z moves
 once switches dynamic power on, each stroke is a ``G0`` to its start (the beam is off on
 rapids) and ``G1`` moves whose first carries the layer's power as an ``S`` word when it
 changes (``power`` times ``$30``, the profile's ``spindle_max``); ``M5`` switches the beam
-off at every pause and at the end.
+off at every pause and at the end.  A dot (a one-point line) is left out: in ``M4`` the beam
+burns only while the head moves.
 
 A pause (sheet flip, or a tool change on a device without a pen changer) lifts the
 tool, parks it, writes the operator message as ``(comment)`` lines (GRBL strips
@@ -163,6 +164,10 @@ class _GcodeWriter:
         for line in sweep.lines:
             points = words[start:start + len(line)]
             start += len(points)
+            if self.device.laser:
+                if len(points) == 1:
+                    continue  # a laser burns only while it moves (M4): it has no dots
+                self.position = None  # a G0 even where the head is: each stroke is its own
             self.travel(points[0])
             self.pen_down(down)
             if len(points) > 1:
