@@ -84,6 +84,8 @@ class GcodeMachine(Machine):
         self.motion, self.feed, self.spindle = "G0", None, 0.0
         self.beam: str | None = None
         """The spindle (laser) state GRBL's M3/M4 set, None after M5 (and at the start)."""
+        self.laser_mode = True
+        """GRBL's ``$32``: a board without laser mode keeps the beam on during G0 moves too."""
         self.z, self.absolute, self.scale = gcode.pen_up if self.down_limit is not None else 0.0, True, 1.0
         self.g92 = (0.0, 0.0)
         self.g92_pending = False
@@ -210,7 +212,8 @@ class GcodeMachine(Machine):
     def beam_state(self, offset: int) -> None:
         """A laser before a move: on for a G1 move with M3/M4 and S > 0, at this power."""
         full = self.device.gcode.spindle_max
-        power = min(self.spindle, full) / full if self.motion == "G1" and self.beam and self.spindle > 0 else None
+        on = self.beam and self.spindle > 0 and (self.motion == "G1" or not self.laser_mode)
+        power = min(self.spindle, full) / full if on else None
         if self.stroke is not None and self.stroke_meta["power"] != power:
             self.lift()
         if power is not None and self.stroke is None:
