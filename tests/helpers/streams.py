@@ -20,7 +20,7 @@ from foldfab.programs.interpret import interpret
 from helpers import ROOT
 
 
-FLOWS = {"hp7475a": "escb", "graphtec-ce6000": "rtscts", "roland-gx24": "none", "grbl": "grbl"}
+FLOWS = {"hp7475a": "escb", "graphtec-ce6000": "rtscts", "roland-gx24": "none", "grbl": "grbl", "grbl-laser": "grbl"}
 SIM = "sim://?time=instant&sheet=A3"
 FAST_BAUD = 115200
 """Host and simulated wire run at this rate where a test is about correctness, not timing:
@@ -54,10 +54,10 @@ def strokes_of(program, device):
 
 
 def same_strokes(got, want, atol: float = 1e-6) -> bool:
-    """Same strokes in the same order: points, tool, force, speed."""
+    """Same strokes in the same order: points, tool, force, speed, a laser's power."""
     return len(got) == len(want) and all(
         a.points.shape == b.points.shape and np.allclose(a.points, b.points, atol=atol)
-        and (a.pen, a.force, a.pen_down) == (b.pen, b.force, b.pen_down)
+        and (a.pen, a.force, a.pen_down, a.power) == (b.pen, b.force, b.pen_down, b.power)
         and a.speed == pytest.approx(b.speed) for a, b in zip(got, want))
 
 
