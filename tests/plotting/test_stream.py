@@ -232,7 +232,8 @@ def garbled_park(name: str, occurrence: int, xonxoff_device: str):
     if device.protocol == "hpgl":
         pattern = "PU{},{}".format(*device.park_units)
     else:
-        pattern = "\nX{:g} Y{:g}".format(*device.motion.park)
+        # after a Z or servo lift G0 is modal: a bare "X.. Y.."; after a laser's G1 moves and M5, "G0 X.. Y.."
+        pattern = ("\nG0 " if device.laser else "\n") + "X{:g} Y{:g}".format(*device.motion.park)
     assert program.text.count(pattern) == 2  # the park before the pause, and at the end
     wrong = str((int(pattern[-1]) + 5) % 10).encode()
     port = open_port(SIM, device, baudrate=FAST_BAUD)

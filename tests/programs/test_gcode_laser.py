@@ -5,14 +5,18 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 
 from foldfab.devices import load_device
 from foldfab.fabrication.plan import Pass, Pause, PlotPlan
 from foldfab.programs.gcode import write_gcode
+from foldfab.programs.interpret import interpret
 from foldfab.programs.read_gcode import GcodeMachine
+from helpers import JOBS
 from helpers.plans import assert_round_trip, make_document, random_plans, sample_plan
+from helpers.streams import fabricated
 
 LASER_WORDS = {"G0", "G1", "G17", "G21", "G90", "M0", "M2", "M4", "M5"}
 
@@ -136,3 +140,49 @@ def test_non_laser_strokes_have_no_power():
     program = write_gcode(sample_plan(grbl), grbl)
     machine = GcodeMachine(grbl, grbl.frame(grbl.sheet), program)
     assert {s.power for s in machine.run(program.text).strokes} == {None}
+
+
+def pygcode_burns(text: str) -> list[tuple[float, list[tuple[float, float]]]]:
+    """(S, device points) of each burn as pygcode's machine (an independent G-code reader, after
+    LinuxCNC) reads the program: moves in G1 with M3 or M4 on and S above 0, one burn while they
+    follow each other at one S.  pygcode raises on a word or G/M code it does not know."""
+    from pygcode import Line, Machine
+    from pygcode.gcodes import MODAL_GROUP_MAP
+
+    machine, burns, burning = Machine(), [], False
+    for raw in text.splitlines():
+        block = Line(raw).block
+        start = (machine.pos.X, machine.pos.Y)
+        machine.process_block(block)
+        if not block.gcodes and not block.modal_params:
+            continue  # a comment
+        groups = machine.mode.modal_groups
+        speed = float(str(groups[MODAL_GROUP_MAP["spindle_speed"]])[1:])
+        end = (machine.pos.X, machine.pos.Y)
+        on = (end != start and str(groups[MODAL_GROUP_MAP["motion"]]) == "G01"
+              and str(groups[MODAL_GROUP_MAP["spindle"]]) in ("M03", "M04") and speed > 0)
+        if on and burning and burns[-1][0] == speed:
+            burns[-1][1].append(end)
+        elif on:
+            burns.append((speed, [start, end]))
+        burning = on
+    return burns
+
+
+@pytest.mark.parametrize("strategy", ["force", "perforate", "two-sided"])
+@pytest.mark.parametrize("job", JOBS, ids=[j.stem for j in JOBS])
+def test_every_example_job_round_trips_and_pygcode_reads_the_same_burns(job, strategy, laser):
+    """Every crease and the outline come back from the program with their layer's power, and
+    pygcode, reading the same text, burns the same lines at the same power."""
+    fab = fabricated(str(job), "grbl-laser", strategy)
+    check_laser_rules(fab.program.text)
+    assert_round_trip(fab.plan, laser, fab.program)
+    ours = interpret(fab.program, laser, fab.plan.sheet).strokes
+    frame = laser.frame(fab.plan.sheet)
+    theirs = pygcode_burns(fab.program.text)
+    assert len(theirs) == len(ours) > 0
+    for (speed, points), stroke in zip(theirs, ours):
+        assert speed == pytest.approx(stroke.power * laser.gcode.spindle_max, abs=1e-9)
+        assert np.allclose(points, frame.to_device(stroke.points), atol=1e-9, rtol=0)
+    if strategy == "perforate":  # the dashes cut: every stroke at the cut's power
+        assert {round(s.power, 6) for s in ours} == {laser.layers["cut"].power}
