@@ -108,3 +108,13 @@ def test_a_fault_holds_resets_and_switches_the_beam_off(laser):
     assert hold < reset and b"M4" in written[:hold]
     assert b"M5\n" in after_last_reset(port)
     assert port.simulator.beam is None and port.simulator.strokes
+
+
+def test_a_laser_job_resumes_at_any_stroke_with_the_beam_on_at_its_power(laser):
+    from foldfab.plotting.resume import resume_program
+
+    fab = fabricated(STAR, "grbl-laser", "two-sided")
+    strokes = strokes_of(fab.program, laser)
+    for stroke in range(0, len(strokes), 7):
+        resumed = resume_program(fab.program, laser, stroke)
+        assert same_strokes(strokes_of(resumed, laser), strokes[stroke:])
