@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
 from foldfab.devices import Tool, list_devices, load_device
 from foldfab.errors import FoldfabError
+from helpers.devices import broken
 
 
 def test_the_grbl_laser_profile_loads():
@@ -19,17 +18,6 @@ def test_the_grbl_laser_profile_loads():
     assert laser.tool_for("cut") == Tool(pen=1, force=None, speed=10.0, passes=1, power=0.6)
     assert laser.tool_for("valley").power == 0.15
     assert all(layer.pen_down is None for layer in laser.layers.values())
-
-
-def broken(tmp_path, edit, base: str = "grbl-laser") -> str:
-    """Write the ``base`` profile through ``edit``; the one-line FoldfabError message."""
-    path = tmp_path / "broken.toml"
-    path.write_text(edit(Path(load_device(base).source).read_text()))
-    with pytest.raises(FoldfabError) as error:
-        load_device(str(path))
-    message = str(error.value)
-    assert str(path) in message and "\n" not in message
-    return message
 
 
 @pytest.mark.parametrize("edit, words", [
@@ -49,7 +37,7 @@ def broken(tmp_path, edit, base: str = "grbl-laser") -> str:
     (lambda t: t.replace('tool = "laser"', 'tool = "lazer"'), ["key 'gcode.tool'", '"pen" or "laser"']),
 ])
 def test_laser_profile_errors_name_file_and_key(tmp_path, edit, words):
-    message = broken(tmp_path, edit)
+    message = broken(tmp_path, edit, base="grbl-laser")
     for word in words:
         assert word in message, message
 
