@@ -4,6 +4,7 @@ power of each recorded stroke."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from urllib.parse import urlencode
 
 import numpy as np
@@ -129,3 +130,15 @@ def test_the_simulator_records_each_strokes_power(laser):
         assert np.allclose(got.points, expected.points, atol=1e-9, rtol=0)
     assert {round(s.power, 6) for s in drawn} == {0.6}  # perforation dashes and outline cut alike
     assert port.simulator.beam is None
+
+
+def test_recorded_laser_strokes_are_named_by_the_layer_of_their_power(laser):
+    from foldfab.sim.record import layer_named, stroke_dict
+
+    design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
+    fab = fabricate(design, laser, spec())
+    strokes = interpret(fab.program, laser, fab.plan.sheet).strokes
+    named = layer_named([replace(s, section=None) for s in strokes], laser)
+    assert [s.section.name for s in named] == \
+        ["cut" if s.section.name == "cut" else "valley+mountain" for s in strokes]
+    assert stroke_dict(strokes[0])["power"] == 0.15
