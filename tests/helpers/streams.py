@@ -104,3 +104,42 @@ class Spy:
 def sim_port(device, options: str = "", baudrate: int | None = None, **kw) -> Spy:
     port = open_port(f"{SIM}&{options}" if options else SIM, device, baudrate=baudrate, **kw)
     return Spy(port, grbl=device.protocol == "gcode")
+
+
+class ScriptedGrbl:
+    """A tiny fake GRBL board: banner, ``ok`` per line, status, a scripted reply at some lines
+    (counted from 1) and ``settings`` lines as its answer to ``$$``."""
+
+    def __init__(self, reply_at: dict[int, str], settings: tuple[bytes, ...] = ()):
+        self.reply_at, self.lines, self.settings = reply_at, 0, settings
+        self.out = bytearray(b"Grbl 1.1h ['$' for help]\r\n")
+        self.timeout, self.baudrate, self.bytesize, self.parity, self.stopbits = 1.0, 115200, 8, "N", 1
+        self.xonxoff = self.rtscts = False
+        self.written, self.line = bytearray(), bytearray()
+
+    @property
+    def in_waiting(self):
+        return len(self.out)
+
+    def read(self, size=1):
+        data = bytes(self.out[:size])
+        del self.out[:size]
+        return data
+
+    def write(self, data):
+        assert type(data) is bytes
+        self.written += data
+        for byte in data:
+            if byte == ord("?"):
+                self.out += b"<Idle|MPos:0.000,0.000,3.000|FS:0,0>\r\n"
+            elif byte == 0x18:
+                self.out += b"Grbl 1.1h ['$' for help]\r\n"
+            elif byte == ord("\n"):
+                self.lines += 1
+                if self.line == b"$$":
+                    self.out += b"".join(line + b"\r\n" for line in self.settings)
+                self.out += (self.reply_at.get(self.lines, "ok") + "\r\n").encode()
+                self.line.clear()
+            else:
+                self.line.append(byte)
+        return len(data)

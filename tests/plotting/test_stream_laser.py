@@ -15,7 +15,7 @@ from foldfab.plotting.engines.base import StreamStopped
 from foldfab.plotting.stream import stream
 from helpers import ROOT
 from helpers.plans import assert_round_trip
-from helpers.streams import fabricated, same_strokes, sim_port, strokes_of
+from helpers.streams import ScriptedGrbl, fabricated, same_strokes, sim_port, strokes_of
 
 STAR = str(ROOT / "jobs" / "star.toml")
 
@@ -120,40 +120,6 @@ def test_a_laser_job_resumes_at_any_stroke_with_the_beam_on_at_its_power(laser):
         assert same_strokes(strokes_of(resumed, laser), strokes[stroke:])
 
 
-class SettingsBoard:
-    """A fake GRBL board: banner, ``ok`` per line, an idle status, and ``settings`` for ``$$``."""
-
-    def __init__(self, settings: list[bytes]):
-        self.settings = settings
-        self.out = bytearray(b"Grbl 1.1h ['$' for help]\r\n")
-        self.timeout, self.baudrate, self.bytesize, self.parity, self.stopbits = 1.0, 115200, 8, "N", 1
-        self.xonxoff = self.rtscts = False
-        self.written, self.line = bytearray(), bytearray()
-
-    @property
-    def in_waiting(self):
-        return len(self.out)
-
-    def read(self, size=1):
-        data = bytes(self.out[:size])
-        del self.out[:size]
-        return data
-
-    def write(self, data):
-        self.written += data
-        for byte in data:
-            if byte == ord("?"):
-                self.out += b"<Idle|MPos:0.000,0.000,0.000|FS:0,0>\r\n"
-            elif byte == ord("\n"):
-                if self.line == b"$$":
-                    self.out += b"".join(s + b"\r\n" for s in self.settings)
-                self.out += b"ok\r\n"
-                self.line.clear()
-            else:
-                self.line.append(byte)
-        return len(data)
-
-
 @pytest.mark.parametrize("settings, error", [
     ([b"$30=1000", b"$31=0"], FoldfabError),
     ([b"$30=1000", b"$32=1x"], StreamStopped),
@@ -163,7 +129,7 @@ class SettingsBoard:
 ])
 def test_a_board_whose_settings_do_not_say_laser_mode_and_30_is_refused(laser, settings, error):
     fab = fabricated(STAR, "grbl-laser")
-    board = SettingsBoard(settings)
+    board = ScriptedGrbl({}, tuple(settings))
     with pytest.raises(error) as refused:
         stream(board, fab.program, laser, operator=lambda message: True)
     assert "\n" not in str(refused.value)
