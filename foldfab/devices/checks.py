@@ -143,6 +143,10 @@ _TOOL_KEYS = {
     "speed": ("a speed in mm/s > 0", _number(0, open_lo=True)),
     "passes": ("an integer from 1 to 100", _integer(1, 100)),
 }
+_LASER_KEYS = {
+    "power": ("a share of the laser's full power (GRBL's $30) above 0 and at most 1", _number(0, 1, open_lo=True)),
+}
+"""Tool settings only a laser has (``[gcode] tool = "laser"``)."""
 _PEN_POSITION = 'a Z height in mm (number) or a servo command like "M3 S30" or "M5"'
 
 
@@ -169,3 +173,13 @@ def _check_tool(device, reader: _Reader, pen, force, speed, passes) -> None:
                 key, f"a value in [{bounds[0]:g}, {bounds[1]:g}] ([limits] of {device.name})",
                 value, "use a value inside the device's range",
             )
+
+
+def _laser_power(device, reader: _Reader, default: Any = _MISSING) -> float | None:
+    """The ``power`` of a layer: a laser's share of its full power; no other tool has one."""
+    if not device.laser:
+        if "power" in reader.data:
+            raise reader.fail("power", f"no power ({device.lacks('power')})", reader.data["power"],
+                              'remove it, or make the profile a laser ([gcode] tool = "laser")')
+        return None
+    return reader.take("power", *_LASER_KEYS["power"], default)

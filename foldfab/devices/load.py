@@ -34,10 +34,14 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
                GRBL's $110/$111 and $120/$121 do, so a diagonal move gets up to 1.41 times both
     [limits]   optional ranges [lo, hi] for pen, force, speed
     [gcode]    gcode only: pen_up = Z height (number) or a servo command ("M3 S50");
-               z_speed (mm/s, required with a Z height)
+               z_speed (mm/s, required with a Z height); or tool = "laser" (default "pen") with
+               spindle_max (GRBL's $30, required) and spindle_min (GRBL's $31, default 0), no
+               pen_up or z_speed: the beam is switched by M4/M5 and is off on G0 moves
     [layers.valley], [layers.mountain], [layers.cut] (required; other names allowed):
                pen (required), force, speed (default motion.draw_speed), passes = 1,
-               pen_down (gcode only, required: Z height or servo command, same kind as pen_up)
+               pen_down (gcode only, required: Z height or servo command, same kind as pen_up);
+               a laser's layers: power (share of $30's full power, 0 < power <= 1, required),
+               speed, passes, pen (default 1), and no pen_down
 
 The profile's data model is :mod:`foldfab.devices.profile`, its value checks
 :mod:`foldfab.devices.checks`.
@@ -52,8 +56,8 @@ from pathlib import Path
 from types import MappingProxyType
 
 from foldfab.devices.checks import (_MISSING, _PEN_POSITION, _TOOL_KEYS, README_HINT, _boolean, _check_tool, _choice,
-                                    _choice_number, _integer, _number, _pair, _pen_position, _range, _Reader, _text,
-                                    parse_sheet)
+                                    _choice_number, _integer, _laser_power, _number, _pair, _pen_position, _range,
+                                    _Reader, _text, parse_sheet)
 from foldfab.devices.profile import (DIALECTS, DIRECTIONS, FLOW_CONTROLS, PARITIES, REQUIRED_LAYERS, BufferSettings,
                                      DeviceProfile, GcodeSettings, LayerDefaults, Limits, Motion, SerialSettings,
                                      _origin_corner)
@@ -217,10 +221,17 @@ def _parse(root: _Reader) -> DeviceProfile:
         lim.done()
 
     gcode = None
-    gc = root.table("gcode", required=protocol == "gcode", keys=("pen_up", "z_speed"))
+    gc = root.table("gcode", required=protocol == "gcode",
+                    keys=("pen_up", "z_speed", "tool", "spindle_max", "spindle_min"))
     if gc is not None and protocol != "gcode":
         raise root.fail("gcode", "no [gcode] table in an HPGL profile", "[gcode]", "remove it")
-    if gc is not None:
+    if gc is not None and gc.data.get("tool") == "laser":
+        gcode = _parse_laser(gc)
+    elif gc is not None:
+        gc.take("tool", '"pen" or "laser"', _choice(("pen", "laser")), "pen")
+        for key in ("spindle_max", "spindle_min"):
+            if key in gc.data:
+                raise gc.fail(key, f'no {key} but for a laser (tool = "laser")', gc.data[key], "remove it")
         pen_up = gc.take("pen_up", _PEN_POSITION, _pen_position)
         z_speed = gc.take("z_speed", "mm/s > 0", positive, None)
         if isinstance(pen_up, float) and z_speed is None:
@@ -242,21 +253,25 @@ def _parse(root: _Reader) -> DeviceProfile:
         if layer not in layers_reader.data:
             raise FoldfabError(f"{root.file}: missing table '[layers.{layer}]'; add it, {README_HINT}")
     for layer in list(layers_reader.data):
-        layers[layer] = _parse_layer(profile, layers_reader.table(layer, keys=(*_TOOL_KEYS, "pen_down")))
+        layers[layer] = _parse_layer(profile, layers_reader.table(layer, keys=(*_TOOL_KEYS, "pen_down", "power")))
     root.done()
     return replace(profile, layers=MappingProxyType(layers))
 
 
 def _parse_layer(profile: DeviceProfile, reader: _Reader) -> LayerDefaults:
     values = {
-        "pen": reader.take("pen", *_TOOL_KEYS["pen"]),
+        "pen": reader.take("pen", *_TOOL_KEYS["pen"], *((1,) if profile.laser else ())),
         "force": reader.take("force", *_TOOL_KEYS["force"], None),
         "speed": reader.take("speed", *_TOOL_KEYS["speed"], profile.motion.draw_speed),
         "passes": reader.take("passes", *_TOOL_KEYS["passes"], 1),
     }
     _check_tool(profile, reader, **values)
+    power = _laser_power(profile, reader)
     pen_down = None
-    if profile.gcode is not None:
+    if profile.laser and "pen_down" in reader.data:
+        raise reader.fail("pen_down", "no pen_down for a laser (its beam is set by power)", reader.data["pen_down"],
+                          "remove it and give the layer a power")
+    if profile.gcode is not None and not profile.laser:
         pen_up = profile.gcode.pen_up
         pen_down = reader.take("pen_down", _PEN_POSITION, _pen_position)
         if isinstance(pen_down, str) != isinstance(pen_up, str):
@@ -267,4 +282,19 @@ def _parse_layer(profile: DeviceProfile, reader: _Reader) -> LayerDefaults:
             raise reader.fail("pen_down", f"a pen-down position below/unlike gcode.pen_up ({pen_up!r})",
                               pen_down, "lower pen_down or raise pen_up")
     reader.done()
-    return LayerDefaults(pen_down=pen_down, **values)
+    return LayerDefaults(pen_down=pen_down, power=power, **values)
+
+
+def _parse_laser(gc: _Reader) -> GcodeSettings:
+    """A laser's ``[gcode]`` table: GRBL's ``$30`` and ``$31``, and no pen keys."""
+    gc.take("tool", '"laser"', _choice(("laser",)))
+    for key in ("pen_up", "z_speed"):
+        if key in gc.data:
+            raise gc.fail(key, f"no {key} for a laser (its beam is switched by M4/M5 and is off on G0 moves)",
+                          gc.data[key], "remove it")
+    top = gc.take("spindle_max", "the S value of full power > 0 (GRBL's $30)", _number(0, open_lo=True))
+    low = gc.take("spindle_min", "the S value of the lowest power >= 0 (GRBL's $31)", _number(0), 0.0)
+    if low >= top:
+        raise gc.fail("spindle_min", f"a value below spindle_max ({top:g})", low, "lower spindle_min")
+    gc.done()
+    return GcodeSettings(pen_up=None, z_speed=None, tool="laser", spindle_max=top, spindle_min=low)

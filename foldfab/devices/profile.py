@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping
 
-from foldfab.devices.checks import _TOOL_KEYS, _Reader, _check_tool
+from foldfab.devices.checks import _LASER_KEYS, _TOOL_KEYS, _laser_power, _Reader, _check_tool
 from foldfab.errors import FoldfabError
 
 GCODE_DECIMALS = 3
@@ -64,6 +64,8 @@ class Tool:
     pen_down: float | str | None = None
     """G-code: the depth of the profile layer this pass borrows its tool from (perforation dashes
     cut at the cut's depth); None: the depth of the pass's own layer."""
+    power: float | None = None
+    """A laser's power, as a share of its full power (GRBL's ``$30``); None for other tools."""
 
 
 @dataclass(frozen=True)
@@ -123,10 +125,17 @@ class Limits:
 
 @dataclass(frozen=True)
 class GcodeSettings:
-    """How a G-code device lifts its tool: a Z height or a servo command."""
+    """How a G-code device lifts its tool: a Z height or a servo command; or a laser's beam."""
 
-    pen_up: float | str
+    pen_up: float | str | None
+    """None for a laser (its beam is off on G0 moves and after M5)."""
     z_speed: float | None
+    tool: str = "pen"
+    """``"pen"`` (a pen, drag knife or stylus lowered by Z or a servo) or ``"laser"``."""
+    spindle_max: float | None = None
+    """A laser: GRBL's ``$30``, the ``S`` value of full power."""
+    spindle_min: float = 0.0
+    """A laser: GRBL's ``$31``, the ``S`` value of the lowest power above off."""
 
 
 @dataclass(frozen=True)
@@ -138,6 +147,8 @@ class LayerDefaults:
     speed: float
     passes: int
     pen_down: float | str | None
+    power: float | None = None
+    """A laser's power (a share of ``$30``); None for other tools."""
 
 
 @dataclass(frozen=True)
@@ -222,6 +233,11 @@ class DeviceProfile:
         return (round(x), round(y)) if self.protocol == "hpgl" else (x, y)
 
     @property
+    def laser(self) -> bool:
+        """A G-code laser (``[gcode] tool = "laser"``): power per layer, no Z, beam off on G0."""
+        return self.gcode is not None and self.gcode.tool == "laser"
+
+    @property
     def language(self) -> Dialect:
         """What this device's plotter language can express."""
         return DIALECTS[self.protocol][self.dialect]
@@ -250,17 +266,24 @@ class DeviceProfile:
             )
         base = self.layers[like]
         values = {key: getattr(base, key) for key in _TOOL_KEYS}
-        reader = _Reader(dict(overrides or {}), source, f"layers.{layer_name}.", _TOOL_KEYS)
+        overrides = dict(overrides or {})
+        power = base.power
+        if "power" in overrides:
+            power = _laser_power(self, _Reader({"power": overrides.pop("power")}, source,
+                                               f"layers.{layer_name}."))
+        reader = _Reader(overrides, source, f"layers.{layer_name}.", _TOOL_KEYS)
         values.update({key: reader.take(key, *_TOOL_KEYS[key]) for key in _TOOL_KEYS
                        if key in reader.data})
         reader.done()
         _check_tool(self, reader, **values)
-        return Tool(**values, pen_down=base.pen_down if like != layer_name else None)
+        return Tool(**values, pen_down=base.pen_down if like != layer_name else None, power=power)
 
     def lacks(self, key: str) -> str | None:
         """Why this device has no ``key`` tool setting (None: it has it)."""
         if key == "force" and not self.language.force:
             return "its language has no force command"
+        if key == "power" and not self.laser:
+            return "it is no laser"
         return None
 
     def supported(self, overrides: Mapping[str, Any], where: str) -> tuple[dict[str, Any], list[str]]:
@@ -268,9 +291,9 @@ class DeviceProfile:
         line for each left out (``where`` names the job's table).  A job describes the sheet and
         the creases, not one machine: a setting another device has is no mistake on this one.
         A malformed value is kept, for :meth:`tool_for` to refuse."""
-        kept, warnings = dict(overrides), []
+        kept, warnings, known = dict(overrides), [], {**_TOOL_KEYS, **_LASER_KEYS}
         for key in [key for key, value in kept.items()
-                    if key in _TOOL_KEYS and self.lacks(key) and _TOOL_KEYS[key][1](value) is not None]:
+                    if key in known and self.lacks(key) and known[key][1](value) is not None]:
             value = kept.pop(key)
             warnings.append(f"{where}.{key} = {value!r} ignored: {self.name} has no {key} setting "
                             f"({self.lacks(key)})")

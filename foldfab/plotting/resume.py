@@ -426,9 +426,10 @@ def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
 
     for _, machine in pen_states(text, "gcode", device):
         pass  # to the end of the text: the modes in force there
+    beam = f"{machine.beam} S{fmt_number(machine.spindle, 3)}\n" if machine.beam else ""  # a laser's M4 and power
     if machine.feed is None:
-        return "G0\n" if machine.motion == "G0" else ""
-    return f"{machine.motion} F{fmt_number(machine.feed * 60 / machine.scale, 3)}\n"
+        return beam + ("G0\n" if machine.motion == "G0" else "")
+    return beam + f"{machine.motion} F{fmt_number(machine.feed * 60 / machine.scale, 3)}\n"
 
 
 def _travel(device: DeviceProfile, point, protocol: str) -> str:

@@ -2,10 +2,17 @@
 
 One block per line, ``\\n`` endings, every line shorter than 80 characters (GRBL's
 line buffer), numbers with at most three decimals, and only words GRBL 1.1 accepts:
-``G0 G1 G4 G17 G21 G90 M0 M2 M3 M5`` with ``X Y Z F S P``.  Modal ``G1`` and ``F``
+``G0 G1 G4 G17 G21 G90 M0 M2 M3 M4 M5`` with ``X Y Z F S P``.  Modal ``G1`` and ``F``
 are written only when they change.  The tool goes up and down either by Z moves
 (``G0 Z<up>`` / ``G1 Z<down> F<z feed>``) or by servo commands (``M3 S..`` /
 ``M5``, each followed by a ``G4 P<pen_lift_time>`` dwell), as the profile says.
+
+A laser (``[gcode] tool = "laser"``, GRBL's laser mode ``$32=1``) has no Z moves: ``M4 S0``
+once switches dynamic power on, each stroke is a ``G0`` to its start (the beam is off on
+rapids) and ``G1`` moves whose first carries the layer's power as an ``S`` word when it
+changes (``power`` times ``$30``, the profile's ``spindle_max``); ``M5`` switches the beam
+off at every pause and at the end.  A dot (a one-point line) is left out: in ``M4`` the beam
+burns only while the head moves.
 
 A pause (sheet flip, or a tool change on a device without a pen changer) lifts the
 tool, parks it, writes the operator message as ``(comment)`` lines (GRBL strips
@@ -78,6 +85,7 @@ class _GcodeWriter:
         self.feed: float | None = None
         self.position: str | None = None  # "X.. Y.." of the last move
         self.down = True  # unknown at the start: force the first lift
+        self.power: str | None = None  # a laser's modal S value
         self.number = functools.cache(functools.partial(fmt_number, decimals=GCODE_DECIMALS))
         """Text of a feed, Z height or dwell: the same few values recur at every stroke."""
 
@@ -88,13 +96,16 @@ class _GcodeWriter:
     def comment(self, text: str) -> None:
         self.line("(" + _ascii(text)[: MAX_LINE - 2] + ")")
 
-    def move(self, mode: str, words: str, feed: float | None = None) -> None:
-        """One G0/G1 block with modal words omitted when unchanged."""
+    def move(self, mode: str, words: str, feed: float | None = None, power: str | None = None) -> None:
+        """One G0/G1 block with modal words omitted when unchanged (``power``: a laser's S value)."""
         head = "" if mode == self.motion else mode + " "
         tail = ""
         if feed is not None and feed != self.feed:
             tail = " F" + self.number(feed)
             self.feed = feed
+        if power is not None and power != self.power:
+            tail += " S" + power
+            self.power = power
         self.motion = mode
         self.line(head + words + tail)
 
@@ -107,14 +118,20 @@ class _GcodeWriter:
         if not self.down:
             return
         up = self.device.gcode.pen_up
-        if isinstance(up, str):
+        if self.device.laser:
+            self.line("M5")
+        elif isinstance(up, str):
             self.pen_command(up)
         else:
             self.move("G0", "Z" + self.number(up))
         self.down = False
 
-    def pen_down(self, down: float | str) -> None:
-        if isinstance(down, str):
+    def pen_down(self, down: float | str | None) -> None:
+        if self.device.laser:  # M4 once: between strokes, G0 moves keep the beam off
+            if not self.down:
+                self.line("M4 S0")
+                self.power = "0"
+        elif isinstance(down, str):
             self.pen_command(down)
         else:
             self.move("G1", "Z" + self.number(down), self.device.gcode.z_speed * 60)
@@ -141,16 +158,22 @@ class _GcodeWriter:
             )
         down = sweep.tool.pen_down if sweep.tool.pen_down is not None else self.device.layers[sweep.name].pen_down
         feed = sweep.tool.speed * 60
+        power = self.number(sweep.tool.power * self.device.gcode.spindle_max) if self.device.laser else None
         words = _xy_words(np.concatenate(sweep.lines)) if sweep.lines else []
         start = 0
         for line in sweep.lines:
             points = words[start:start + len(line)]
             start += len(points)
+            if self.device.laser:
+                if len(points) == 1:
+                    continue  # a laser burns only while it moves (M4): it has no dots
+                self.position = None  # a G0 even where the head is: each stroke is its own
             self.travel(points[0])
             self.pen_down(down)
             if len(points) > 1:
-                self.move("G1", points[1], feed)
+                self.move("G1", points[1], feed, power)
             if len(points) > 2:  # G1 and F are modal: the rest are bare coordinates
                 self.builder.write("\n".join(points[2:]) + "\n")
             self.position = points[-1]
-            self.pen_up()
+            if not self.device.laser:
+                self.pen_up()

@@ -42,6 +42,9 @@ class Stroke:
     end: int = -1
     """Byte offset of the command that lifted the pen (the text length if none did): once
     the device has executed the bytes before it, the stroke is drawn (resume, progress)."""
+    power: float | None = None
+    """A laser's power while it drew the stroke, as a share of its full power (``S`` / ``$30``);
+    None for other tools."""
 
     @property
     def length(self) -> float:

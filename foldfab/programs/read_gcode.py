@@ -19,7 +19,7 @@ _XY_LINE = re.compile(r"X([-+]?\d+\.?\d*) Y([-+]?\d+\.?\d*)(?: F(\d+\.?\d*))?")
 """Lines of X, Y and perhaps F (as _WORD reads them, nothing else): GcodeMachine takes their
 words without :func:`read_gcode_line`."""
 SUPPORTED_G = frozenset({0, 1, 4, 17, 20, 21, 90, 91, 92})
-SUPPORTED_M = frozenset({0, 2, 3, 5})
+SUPPORTED_M = frozenset({0, 2, 3, 4, 5})
 
 
 class GcodeLine(NamedTuple):
@@ -66,18 +66,27 @@ def _read_code(raw: str) -> tuple[str, tuple, tuple, str, tuple]:
 
 
 class GcodeMachine(Machine):
-    """GRBL semantics for G0 G1 G4 G17 G20 G21 G90 G91 G92 M0 M2 M3 M5 and X Y Z F S."""
+    """GRBL semantics for G0 G1 G4 G17 G20 G21 G90 G91 G92 M0 M2 M3 M4 M5 and X Y Z F S.
+
+    A laser (GRBL's laser mode, ``$32=1``) draws on ``G1`` moves while ``M3`` or ``M4`` is on
+    with ``S`` above 0, and never on ``G0``; each stroke records its power (``S`` / ``$30``),
+    and a change of power starts a new stroke."""
 
     def __init__(self, device, frame, known):
         super().__init__("gcode", device, frame, known)
         gcode = device.gcode
         downs = [layer.pen_down for layer in device.layers.values()]
+        self.laser = device.laser
         self.servo = isinstance(gcode.pen_up, str)
         self.down_commands = {_servo_key(d) for d in downs if isinstance(d, str)}
-        self.down_limit = None if self.servo else max(downs) + 1e-3  # z <= this: pen down
+        self.down_limit = None if self.servo or self.laser else max(downs) + 1e-3  # z <= this: pen down
         self.messages = {m.offset: m.message for m in known.pauses} if known else {}
         self.motion, self.feed, self.spindle = "G0", None, 0.0
-        self.z, self.absolute, self.scale = gcode.pen_up if not self.servo else 0.0, True, 1.0
+        self.beam: str | None = None
+        """The spindle (laser) state GRBL's M3/M4 set, None after M5 (and at the start)."""
+        self.laser_mode = True
+        """GRBL's ``$32``: a board without laser mode keeps the beam on during G0 moves too."""
+        self.z, self.absolute, self.scale = gcode.pen_up if self.down_limit is not None else 0.0, True, 1.0
         self.g92 = (0.0, 0.0)
         self.g92_pending = False
         self.is_down = False
@@ -137,10 +146,12 @@ class GcodeMachine(Machine):
         if self.g92_pending:
             self.set_position(values)
         elif "X" in values or "Y" in values:
+            if self.laser:
+                self.beam_state(offset)
             self.xy_move(values)
         if "Z" in values and not self.g92_pending:
             self.z = values["Z"] * self.scale + (0 if self.absolute else self.z)
-            if not self.servo:
+            if self.down_limit is not None:
                 self.pen_state(self.z <= self.down_limit, self.z, offset)
         self.g92_pending = False
         for m in values.get("M", []):
@@ -189,9 +200,25 @@ class GcodeMachine(Machine):
                                                  len(self.result.strokes)))
         elif value == 2:
             self.pen_state(False, None, offset)
+            self.beam = None  # M2 resets the spindle to M5
+        elif value in (3, 4, 5) and self.laser:
+            self.beam = None if value == 5 else f"M{value:g}"
+            if value == 5:
+                self.lift()
         elif value in (3, 5) and self.servo:
             command = "M5" if value == 5 else f"M3 S{self.spindle:g}"
             self.pen_state(_servo_key(command) in self.down_commands, command, offset)
+
+    def beam_state(self, offset: int) -> None:
+        """A laser before a move: on for a G1 move with M3/M4 and S > 0, at this power."""
+        full = self.device.gcode.spindle_max
+        on = self.beam and self.spindle > 0 and (self.motion == "G1" or not self.laser_mode)
+        power = min(self.spindle, full) / full if on else None
+        if self.stroke is not None and self.stroke_meta["power"] != power:
+            self.lift()
+        if power is not None and self.stroke is None:
+            self.lower(offset, pen=None, force=None, speed=self.feed or self.device.motion.draw_speed,
+                       pen_down=None, power=power)
 
     def pen_state(self, down: bool, by, offset: int) -> None:
         if down and not self.is_down:

@@ -21,6 +21,13 @@
   parser restarts with its defaults, but a Z tool stays where it is: down if it was
   (a servo pen is switched off with the spindle output).
 * ``$X``, ``$``, ``$I``, ``$G`` and ``$$`` answer as GRBL does (settings from the profile).
+* Laser mode (GRBL's ``doc/markdown/laser_mode.md``, ``gcode.c``): ``$30``/``$31`` are a laser
+  profile's ``spindle_max``/``spindle_min``, ``$32`` the ``laser_mode`` option (default: 1 for a
+  laser profile).  ``M3``/``M4`` switch the beam on, ``M5``, ``M2`` and a soft reset off; with
+  ``$32=1`` it burns only on ``G1`` moves with ``S`` above 0, and an ``S`` change on a move does
+  not stop motion; with ``$32=0`` it burns on ``G0`` moves too and every ``S`` change waits for
+  the planner to empty (the machine stops).  A change of spindle state (``M3``/``M4``/``M5``)
+  always waits, as in GRBL.  Each recorded stroke carries its power.
 * Status: ``<Idle|MPos:x,y,z|FS:feed,spindle>`` with state ``Idle``, ``Run``,
   ``Hold:0`` or ``Alarm``; the position is interpolated along the current move.
   ``WCO``/``Ov`` fields, ``Hold:1`` deceleration, jogging, homing and check mode are
@@ -45,7 +52,7 @@ if TYPE_CHECKING:
 
 BANNER = "\r\nGrbl 1.1h ['$' for help]"
 LINE_BUFFER = 80  # LINE_BUFFER_SIZE: 79 characters + terminator
-SYNC_M = (0, 2, 3, 5)  # M words that wait for the planner to empty (G4 too)
+SYNC_M = (0, 2, 3, 4, 5)  # M words that wait for the planner to empty (G4 too)
 HELP = "[HLP:$$ $# $G $I $N $x=val $Nx=line $J=line $SLP $C $X $H ~ ! ? ctrl-x]"
 
 
@@ -69,13 +76,16 @@ class GrblController(Simulator):
         self.dwelling = False  # G4: nothing is read until the dwell is over
         self.ended = False  # M2 executed, nothing since
         self.hold: PauseRecord | None = None
-        self.z = 0.0 if isinstance(device.gcode.pen_up, str) else device.gcode.pen_up
+        self.z = device.gcode.pen_up if isinstance(device.gcode.pen_up, float) else 0.0
+        self.laser_mode = device.laser if options.laser_mode is None else options.laser_mode
+        """GRBL's ``$32``."""
         self.previous: list[Stroke] = []  # drawn before the last soft reset
         self.machine = self._new_machine((0.0, 0.0))
 
     def _new_machine(self, position: Point) -> TimedGcode:
         machine = TimedGcode(self.device, self.frame, None)
         machine.position = position
+        machine.laser_mode = self.laser_mode
         machine.start_timing(self._enqueue)
         return machine
 
@@ -86,6 +96,11 @@ class GrblController(Simulator):
     def interpretation(self) -> Interpretation:
         return Interpretation("gcode", strokes=self.strokes, travels=self.machine.sheet_travels(),
                               pauses=list(self.machine.result.pauses))
+
+    @property
+    def beam(self) -> str | None:
+        """The laser's spindle state, ``"M3"`` or ``"M4"``; None when it is off (``M5``)."""
+        return self.machine.beam
 
     def _drawn(self) -> list[Stroke]:
         mark = self.planner[0].mark if self.planner else self.machine.mark()
@@ -155,7 +170,7 @@ class GrblController(Simulator):
         """Execute a valid line if the planner lets it; False: not yet."""
         dwell = any(letter == "G" and value == 4 for letter, value in line.words)
         m_words = [value for letter, value in line.words if letter == "M"]
-        if (dwell or any(m in SYNC_M for m in m_words)) and self.planner:
+        if (dwell or any(m in SYNC_M for m in m_words) or self._power_sync(line)) and self.planner:
             return False
         if len(self.planner) >= self.options.planner - 1:
             return False
@@ -177,6 +192,15 @@ class GrblController(Simulator):
             self.reply("ok")
         return True
 
+    def _power_sync(self, line: GcodeLine) -> bool:
+        """Does an ``S`` word wait for the planner to empty?  GRBL syncs a change of spindle speed
+        while the spindle is on, except in laser mode on a line that moves."""
+        power = next((value for letter, value in line.words if letter == "S"), None)
+        if power is None or power == self.machine.spindle or self.machine.beam is None:
+            return False
+        moves = any(letter in "XYZ" for letter, _ in line.words)
+        return not (self.laser_mode and moves)
+
     def _dwelt(self) -> None:
         self.dwelling = False
         self.reply("ok")
@@ -194,7 +218,7 @@ class GrblController(Simulator):
         elif command == "$G":
             m = self.machine
             self.reply(f"[GC:{m.motion} G54 G17 G{20 if m.scale != 1 else 21} "
-                       f"G{90 if m.absolute else 91} G94 M5 M9 T0 "
+                       f"G{90 if m.absolute else 91} G94 {m.beam or 'M5'} M9 T0 "
                        f"F{(m.feed or 0) * 60:g} S{m.spindle:g}]")
         elif command == "$$":
             for line in self._settings():
@@ -208,13 +232,14 @@ class GrblController(Simulator):
         self.reply("ok")
 
     def _settings(self) -> list[str]:
-        """``$$``: GRBL's defaults with the profile's speeds, acceleration, junction deviation
-        and reach."""
+        """``$$``: GRBL's defaults with the profile's speeds, acceleration, junction deviation,
+        reach and laser settings ($30 and $31 as GRBL prints them, in whole numbers)."""
         motion, (w, h) = self.device.motion, self.device.plottable_area
         z_rate = (self.device.gcode.z_speed or motion.travel_speed) * 60
         deviation = 0.010 if motion.junction_deviation is None else motion.junction_deviation
         values = {0: 10, 1: 25, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0, 10: 1, 11: deviation, 12: 0.002,
-                  13: 0, 20: 0, 21: 0, 22: 0, 30: 1000, 31: 0, 32: 0,
+                  13: 0, 20: 0, 21: 0, 22: 0, 30: round(self.device.gcode.spindle_max or 1000),
+                  31: round(self.device.gcode.spindle_min), 32: int(self.laser_mode),
                   100: 250, 101: 250, 102: 250,
                   110: motion.travel_speed * 60, 111: motion.travel_speed * 60, 112: z_rate,
                   120: motion.acceleration, 121: motion.acceleration, 122: motion.acceleration,
@@ -280,7 +305,7 @@ class GrblController(Simulator):
             self.z = block.z
         self.previous = self.strokes
         self.machine = self._new_machine((x, y))
-        if not self.machine.servo:  # the Z axis stays where it is: a tool that was down still is
+        if self.machine.down_limit is not None:  # the Z axis stays where it is: a tool that was down still is
             self.machine.z = self.z
             self.machine.pen_state(self.z <= self.machine.down_limit, self.z, self.base + len(self.rx))
         self.position = (x, y)

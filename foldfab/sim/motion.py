@@ -104,6 +104,8 @@ class Timed:
     """Mixin for a machine: report each move and pen lift to ``sink`` as a Block."""
 
     sink: Callable[[Block], None]
+    on_the_fly = False
+    """The tool switches while the head moves (a laser's beam): no block, no stop."""
 
     def start_timing(self, sink: Callable[[Block], None]) -> None:
         self.sink = sink
@@ -119,14 +121,14 @@ class Timed:
     def lower(self, offset: int, **meta) -> None:
         was_up = self.stroke is None
         super().lower(offset, **meta)
-        if was_up:
+        if was_up and not self.on_the_fly:
             self._heading = None
             self._emit(self.lift_duration(), self.position, 0.0)
 
     def lift(self) -> None:
         was_down = self.stroke is not None
         super().lift()
-        if was_down:
+        if was_down and not self.on_the_fly:
             self._emit(self.lift_duration(), self.position, 0.0)
 
     def move_to(self, target: Point) -> None:
@@ -201,7 +203,12 @@ class TimedHPGL(Timed, HPGLMachine):
 
 
 class TimedGcode(Timed, GcodeMachine):
-    """G-code machine with timed blocks; a servo pen moves during the program's ``G4`` dwell."""
+    """G-code machine with timed blocks; a servo pen moves during the program's ``G4`` dwell, a
+    laser's beam switches on the fly (GRBL's laser mode: power changes on moves do not stop it)."""
+
+    @property
+    def on_the_fly(self) -> bool:
+        return self.laser
 
     def lift_duration(self) -> float:
         return 0.0 if self.servo else self.device.motion.pen_lift_time

@@ -15,6 +15,10 @@ Every option, its type and meaning (the fault options describe what a test provo
 ``planner``            GRBL planner blocks (16; one is always kept free, as in GRBL)
 ``reset_on_open``      GRBL: 1 (default) the board resets and prints its banner when the
                        port opens (Arduino DTR reset); 0 it stays silent until a soft reset
+``laser_mode``         GRBL's ``$32``: 1 laser mode (the default for a laser profile: G0 moves
+                       switch the beam off, power changes on moves do not stop motion), 0 a
+                       spindle board (the default for other profiles: the beam stays on while
+                       M3/M4 are, rapids included, and every power change stops motion)
 ``disconnect_after``   after the device received that many bytes the cable is pulled
 ``error_at``           GRBL: line N answers ``error:<error_code>`` and is not executed;
                        HPGL: instruction N is not executed and sets ``OE`` to ``error_code``
@@ -61,6 +65,7 @@ class SimOptions:
     buffer: int | None = None
     planner: int = 16
     reset_on_open: bool = True
+    laser_mode: bool | None = None
     disconnect_after: int | None = None
     error_at: int | None = None
     error_code: int | None = None
@@ -124,6 +129,7 @@ _PARSERS = {
     "buffer": ("a byte count >= 2", _count(2)),
     "planner": ("a block count >= 2", _count(2)),
     "reset_on_open": ("0 or 1", _flag),
+    "laser_mode": ("0 or 1", _flag),
     "disconnect_after": ("a byte count", _count(0)),
     "error_at": ("a line or instruction number >= 1", _count(1)),
     "error_code": ("an error number >= 1", _count(1)),

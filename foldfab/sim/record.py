@@ -109,12 +109,13 @@ class SimStats:
 
 def stroke_dict(stroke: Stroke) -> dict:
     return {"points": stroke.points.round(6).tolist(), "pen": stroke.pen, "force": stroke.force,
-            "speed": stroke.speed, "pen_down": stroke.pen_down, "offset": stroke.offset}
+            "speed": stroke.speed, "pen_down": stroke.pen_down, "offset": stroke.offset,
+            "power": stroke.power}
 
 
 def layer_named(strokes: list[Stroke], device: DeviceProfile) -> list[Stroke]:
     """``strokes`` named by the device profile's layer whose tool drew them: the same pen (HPGL),
-    force and lowered position (G-code); layers with one tool share a name ("valley+mountain",
+    force and lowered position (G-code) or power (a laser, to 6 decimals); layers with one tool share a name ("valley+mountain",
     the first one's colour).  A device receives no layer names, only tools; a stroke that no
     layer's tool drew keeps its "pen N" name (grey)."""
     from dataclasses import replace
@@ -125,14 +126,19 @@ def layer_named(strokes: list[Stroke], device: DeviceProfile) -> list[Stroke]:
     by_tool: dict[tuple, list[str]] = {}
     for name, layer in device.layers.items():
         by_tool.setdefault((layer.pen if device.protocol == "hpgl" else None, layer.force,
-                            layer.pen_down), []).append(name)
+                            layer.pen_down, _rounded(layer.power)), []).append(name)
     named = []
     for stroke in strokes:
-        names = by_tool.get((stroke.pen, stroke.force, stroke.pen_down))
+        names = by_tool.get((stroke.pen, stroke.force, stroke.pen_down, _rounded(stroke.power)))
         if names is None:
             named.append(stroke)
             continue
         section = Section(stroke.offset, 0, 0, "+".join(names), 0,
-                          Tool(stroke.pen or 0, stroke.force, stroke.speed, 1))
+                          Tool(stroke.pen or 0, stroke.force, stroke.speed, 1, power=stroke.power))
         named.append(replace(stroke, section=section))
     return named
+
+
+def _rounded(power: float | None) -> float | None:
+    """A laser's power as the program's ``S`` words keep it (a share of ``$30``, 6 decimals)."""
+    return None if power is None else round(power, 6)

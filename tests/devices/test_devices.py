@@ -17,6 +17,7 @@ from foldfab.devices import list_devices, load_device, parse_sheet
 from foldfab.errors import FoldfabError
 from foldfab.devices import Tool
 from helpers import ROOT
+from helpers.devices import broken
 
 SHIPPED = ["graphtec-ce6000", "grbl", "hp7475a", "roland-gx24"]
 
@@ -63,17 +64,6 @@ def test_unknown_device_lists_the_known_ones():
     assert all(name in message for name in SHIPPED)
     with pytest.raises(FoldfabError, match="no such device profile file"):
         load_device("missing/profile.toml")
-
-
-def broken(tmp_path, edit) -> str:
-    """Write the grbl profile through ``edit`` and return the FoldfabError message."""
-    path = tmp_path / "broken.toml"
-    path.write_text(edit(Path(load_device("grbl").source).read_text()))
-    with pytest.raises(FoldfabError) as error:
-        load_device(str(path))
-    message = str(error.value)
-    assert str(path) in message and "\n" not in message
-    return message
 
 
 @pytest.mark.parametrize("edit, words", [

@@ -75,12 +75,13 @@ def random_plans(draw, device: DeviceProfile) -> PlotPlan:
     return PlotPlan(make_document(layers), steps, device.sheet)
 
 
-def expected_strokes(plan: PlotPlan) -> list[tuple[int, int, str, int, Tool, np.ndarray]]:
-    """(step, layer, name, repeat, tool, points (N, 2)) for every line the plan draws, in order."""
+def expected_strokes(plan: PlotPlan, dots: bool = True) -> list[tuple[int, int, str, int, Tool, np.ndarray]]:
+    """(step, layer, name, repeat, tool, points (N, 2)) for every line the plan draws, in order
+    (without one-point lines unless ``dots``: a laser burns only while it moves)."""
     out = []
     for index, step in enumerate(plan.steps):
         if isinstance(step, Pass):
-            lines = [np.asarray(l) for l in plan.document.layers[step.layer_id] if len(l)]
+            lines = [np.asarray(l) for l in plan.document.layers[step.layer_id] if len(l) > (0 if dots else 1)]
             for repeat in range(step.tool.passes):
                 out.extend((index, step.layer_id, step.name, repeat, step.tool,
                             np.column_stack([l.real, l.imag])) for l in lines)
@@ -92,7 +93,7 @@ def assert_round_trip(plan: PlotPlan, device: DeviceProfile, program: Program) -
     result = interpret(program, device, plan.sheet)
     tolerance = 0.5 / device.units_per_mm * math.sqrt(2) + 1e-9 if device.protocol == "hpgl" \
         else 0.0005 * math.sqrt(2) + 1e-9
-    expected = expected_strokes(plan)
+    expected = expected_strokes(plan, dots=not device.laser)
     assert result.ignored == []
     assert len(result.strokes) == len(expected)
     for stroke, (step, layer_id, name, repeat, tool, points) in zip(result.strokes, expected):
@@ -106,6 +107,7 @@ def assert_round_trip(plan: PlotPlan, device: DeviceProfile, program: Program) -
             assert (stroke.pen, stroke.force) == (tool.pen, tool.force)
         else:
             assert stroke.pen_down == device.layers[name].pen_down
+        assert stroke.power == (None if tool.power is None else pytest.approx(tool.power, abs=1e-6))
     plan_messages = [s.message for s in plan.steps if isinstance(s, Pause)]
     messages = [p.message for p in result.pauses]
     assert [m for m in messages if not m.startswith("Load tool")] == plan_messages

@@ -20,7 +20,7 @@ from foldfab.programs.interpret import interpret
 from helpers import ROOT
 
 
-FLOWS = {"hp7475a": "escb", "graphtec-ce6000": "rtscts", "roland-gx24": "none", "grbl": "grbl"}
+FLOWS = {"hp7475a": "escb", "graphtec-ce6000": "rtscts", "roland-gx24": "none", "grbl": "grbl", "grbl-laser": "grbl"}
 SIM = "sim://?time=instant&sheet=A3"
 FAST_BAUD = 115200
 """Host and simulated wire run at this rate where a test is about correctness, not timing:
@@ -54,10 +54,10 @@ def strokes_of(program, device):
 
 
 def same_strokes(got, want, atol: float = 1e-6) -> bool:
-    """Same strokes in the same order: points, tool, force, speed."""
+    """Same strokes in the same order: points, tool, force, speed, a laser's power."""
     return len(got) == len(want) and all(
         a.points.shape == b.points.shape and np.allclose(a.points, b.points, atol=atol)
-        and (a.pen, a.force, a.pen_down) == (b.pen, b.force, b.pen_down)
+        and (a.pen, a.force, a.pen_down, a.power) == (b.pen, b.force, b.pen_down, b.power)
         and a.speed == pytest.approx(b.speed) for a, b in zip(got, want))
 
 
@@ -104,3 +104,42 @@ class Spy:
 def sim_port(device, options: str = "", baudrate: int | None = None, **kw) -> Spy:
     port = open_port(f"{SIM}&{options}" if options else SIM, device, baudrate=baudrate, **kw)
     return Spy(port, grbl=device.protocol == "gcode")
+
+
+class ScriptedGrbl:
+    """A tiny fake GRBL board: banner, ``ok`` per line, status, a scripted reply at some lines
+    (counted from 1) and ``settings`` lines as its answer to ``$$``."""
+
+    def __init__(self, reply_at: dict[int, str], settings: tuple[bytes, ...] = ()):
+        self.reply_at, self.lines, self.settings = reply_at, 0, settings
+        self.out = bytearray(b"Grbl 1.1h ['$' for help]\r\n")
+        self.timeout, self.baudrate, self.bytesize, self.parity, self.stopbits = 1.0, 115200, 8, "N", 1
+        self.xonxoff = self.rtscts = False
+        self.written, self.line = bytearray(), bytearray()
+
+    @property
+    def in_waiting(self):
+        return len(self.out)
+
+    def read(self, size=1):
+        data = bytes(self.out[:size])
+        del self.out[:size]
+        return data
+
+    def write(self, data):
+        assert type(data) is bytes
+        self.written += data
+        for byte in data:
+            if byte == ord("?"):
+                self.out += b"<Idle|MPos:0.000,0.000,3.000|FS:0,0>\r\n"
+            elif byte == 0x18:
+                self.out += b"Grbl 1.1h ['$' for help]\r\n"
+            elif byte == ord("\n"):
+                self.lines += 1
+                if self.line == b"$$":
+                    self.out += b"".join(line + b"\r\n" for line in self.settings)
+                self.out += (self.reply_at.get(self.lines, "ok") + "\r\n").encode()
+                self.line.clear()
+            else:
+                self.line.append(byte)
+        return len(data)

@@ -38,7 +38,8 @@ from foldfab.plotting.stream import stream
 from foldfab.plotting.transport import open_port
 from helpers import JOBS, ROOT
 from helpers.plans import make_document, sample_plan
-from helpers.streams import FAST_BAUD, FLOWS, SIM, Spy, device_for, fabricated, same_strokes, sim_port, strokes_of
+from helpers.streams import (FAST_BAUD, FLOWS, SIM, ScriptedGrbl, Spy, device_for, fabricated, same_strokes,
+                             sim_port, strokes_of)
 
 
 DEVICE_NAMES = [*FLOWS, "xonxoff"]
@@ -232,7 +233,8 @@ def garbled_park(name: str, occurrence: int, xonxoff_device: str):
     if device.protocol == "hpgl":
         pattern = "PU{},{}".format(*device.park_units)
     else:
-        pattern = "\nX{:g} Y{:g}".format(*device.motion.park)
+        # after a Z or servo lift G0 is modal: a bare "X.. Y.."; after a laser's G1 moves and M5, "G0 X.. Y.."
+        pattern = ("\nG0 " if device.laser else "\n") + "X{:g} Y{:g}".format(*device.motion.park)
     assert program.text.count(pattern) == 2  # the park before the pause, and at the end
     wrong = str((int(pattern[-1]) + 5) % 10).encode()
     port = open_port(SIM, device, baudrate=FAST_BAUD)
@@ -491,39 +493,6 @@ def test_grbl_m0_pause_holds_until_the_operator_answers_then_resumes_with_tilde(
     assert b"~" in port.written
     assert same_strokes(port.simulator.strokes, strokes_of(fab.program, device))
     assert [p.reason for p in port.simulator.stats.pauses] == ["M0"]
-
-
-class ScriptedGrbl:
-    """A tiny fake GRBL board: banner, ``ok`` per line, status, and a scripted reply."""
-
-    def __init__(self, reply_at: dict[int, str]):
-        self.reply_at, self.lines = reply_at, 0
-        self.out = bytearray(b"Grbl 1.1h ['$' for help]\r\n")
-        self.timeout, self.baudrate, self.bytesize, self.parity, self.stopbits = 1.0, 115200, 8, "N", 1
-        self.xonxoff = self.rtscts = False
-        self.written = bytearray()
-
-    @property
-    def in_waiting(self):
-        return len(self.out)
-
-    def read(self, size=1):
-        data = bytes(self.out[:size])
-        del self.out[:size]
-        return data
-
-    def write(self, data):
-        assert type(data) is bytes
-        self.written += data
-        for byte in data:
-            if byte == ord("?"):
-                self.out += b"<Idle|MPos:0.000,0.000,3.000|FS:0,0>\r\n"
-            elif byte == 0x18:
-                self.out += b"Grbl 1.1h ['$' for help]\r\n"
-            elif byte == ord("\n"):
-                self.lines += 1
-                self.out += (self.reply_at.get(self.lines, "ok") + "\r\n").encode()
-        return len(data)
 
 
 def test_grbl_alarm_stops_the_job_with_its_meaning():

@@ -13,6 +13,14 @@ after an error, with the last check that agreed as its resume point.  GRBL says
 ``ok`` when a line enters its planner, so the executed count is conservative: lines
 before a dwell or ``M`` synchronisation, or before the last :data:`PLANNER_BLOCKS`
 motion lines; after a stop it is refined by the position where the machine held.
+
+A laser job (a profile with ``[gcode] tool = "laser"``) runs only on a board in laser mode:
+before the first line, ``$$`` must report ``$32=1`` (without it ``M4``/``M5`` and every power
+change stop motion, the beam burns holes at each stop and stays on during rapids) and ``$30``
+equal to the profile's ``spindle_max`` (else every power would be wrong).  The program switches
+the beam off (``M5``) at its pauses and its end; a stop (a cancel, a fault, a signal) is the
+feed hold, the soft reset (which switches the spindle off) and the program's preamble, whose
+``M5`` switches the beam off once more.
 """
 
 from __future__ import annotations
@@ -110,6 +118,8 @@ class _Line:
 
 
 _STATUS = re.compile(r"<([A-Za-z]+)(?::(\d+))?(.*)>")
+_SETTING = re.compile(r"\$(\d{1,3})=(-?\d{1,9}(?:\.\d{0,6})?)")
+"""A ``$$`` line, ``$N=value``: a setting number and a bounded decimal."""
 _FIELD = re.compile(r"\|(MPos|WPos|WCO):([-\d.]+),([-\d.]+),([-\d.]+)")
 
 
@@ -138,6 +148,7 @@ class GrblSender(Sender):
         self.syncs = [i for i, line in enumerate(self.lines_) if line.sync]
         self.verified = 0  # program offset of the last position check that agreed
         self.expecting: tuple[object, int] | None = None  # (interpreter, lines it has read)
+        self.settings: dict[int, float] = {}  # the board's $$ report
 
     def split(self) -> list[_Line]:
         """The program's lines with their byte ranges and what GRBL does with them."""
@@ -155,7 +166,7 @@ class GrblSender(Sender):
                                    f"lines of at most {GRBL_RX_BUFFER} bytes")
             words = read_gcode_line(raw, start).words
             letters = {letter for letter, _ in words}
-            sync = any((letter, value) in (("G", 4), ("M", 0), ("M", 2), ("M", 3), ("M", 5), ("M", 30))
+            sync = any((letter, value) in (("G", 4), ("M", 0), ("M", 2), ("M", 3), ("M", 4), ("M", 5), ("M", 30))
                        for letter, value in words)
             lines.append(_Line(start, end, number, data, bool(letters & {"X", "Y", "Z"}), sync))
             start = end
@@ -210,6 +221,11 @@ class GrblSender(Sender):
                 raise _Fault(f"GRBL alarm {code}: {meaning}")
         elif reply.startswith("<"):
             self.status(reply)
+        elif reply.startswith("$"):
+            match = _SETTING.fullmatch(reply)
+            if match is None:
+                raise _Fault(f"unreadable setting from GRBL: {reply[:40]!r} (line noise?)")
+            self.settings[int(match.group(1))] = float(match.group(2))
         elif reply.startswith("Grbl "):
             self.banner = reply
             if not self.stopping:
@@ -329,14 +345,35 @@ class GrblSender(Sender):
 
             x, y, z = self.work_position()
             machine = GcodeMachine(self.device, self.device.frame(self.device.sheet), None)
-            return PenPosition(x, y, z <= machine.down_limit)
+            return PenPosition(x, y, machine.down_limit is not None and z <= machine.down_limit)
         except _Fault as exc:
             raise FoldfabError(str(exc)) from None
         finally:
             self.port.timeout = timeout
 
+    def check_laser_mode(self) -> None:
+        """A laser job: refuse a board whose ``$$`` does not say laser mode (``$32=1``) and the
+        profile's ``$30``."""
+        self.settings.clear()
+        self.send_line(b"$$\n")
+        name, mode, top = self.device.name, self.settings.get(32), self.settings.get(30)
+        if mode != 1:
+            found = "does not report $32" if mode is None else f"has $32={mode:g}"
+            raise FoldfabError(
+                f"{name} {found}: GRBL's laser mode is off, so M4/M5 and every power change would stop "
+                "the head and burn a hole, and the beam would stay on during rapids; send $32=1 to the "
+                "board (it keeps the setting), then plot again")
+        full = self.device.gcode.spindle_max
+        if top is None or abs(top - full) > 0.5:
+            raise FoldfabError(
+                f"{name} reports $30={'nothing' if top is None else f'{top:g}'} but its profile "
+                f"{self.device.source} says spindle_max = {full:g}: every power would be wrong; send "
+                f"$30={full:g} to the board or correct spindle_max, then plot again")
+
     def send_program(self) -> None:
         self.connect()
+        if self.device.laser:
+            self.check_laser_mode()
         index = 0
         while index < len(self.lines_):
             self.check_cancel()
