@@ -58,6 +58,30 @@ def write_ebb(plan: PlotPlan, device: DeviceProfile) -> Program:
     return out.builder.build()
 
 
+def homing(device: DeviceProfile) -> str:
+    """Commands that raise the pen and send the carriage home (``HM``: to the step counts of
+    ``EM``, where a program starts) wherever a stop left it: how a stop ends and a resume begins."""
+    from plotink import ebb_motion
+
+    builder = ProgramBuilder("ebb", device)
+    port = _Recorder(builder)
+    ebb_motion.sendPenUp(port, int(round(device.motion.pen_lift_time * 1000)), verbose=False)
+    ebb_motion.doAbsMove(port, home_rate(device), verbose=False)
+    return "".join(builder.chunks)
+
+
+def home_rate(device: DeviceProfile) -> int:
+    """``HM``'s step rate (steps/s of the faster motor): the travel speed, within the board's limit."""
+    return int(min(device.motion.travel_speed * device.units_per_mm, 25000))
+
+
+def travel(device: DeviceProfile, target: np.ndarray) -> str:
+    """A pen-up move from home (the park position) to ``target`` (device units)."""
+    writer = _EbbWriter(device, setup=False)
+    writer.move(np.asarray(target, dtype=float), device.motion.travel_speed)
+    return "".join(writer.builder.chunks)
+
+
 class _Recorder:
     """Stands in for plotink's serial port: keeps what it writes, answers every command OK."""
 
@@ -75,7 +99,7 @@ class _Recorder:
 class _EbbWriter:
     """Tracks the motors' step counts and the pen, and writes EBB commands through plotink."""
 
-    def __init__(self, device: DeviceProfile):
+    def __init__(self, device: DeviceProfile, setup: bool = True):
         from plotink import ebb_motion
 
         self.device, self.ebb, self.commands = device, device.ebb, ebb_motion
@@ -84,6 +108,9 @@ class _EbbWriter:
         park = np.asarray(device.park_units, dtype=float)
         self.steps = _motor_steps(park)  # where the last job left the carriage
         self.delay = int(round(device.motion.pen_lift_time * 1000))
+        self.down = False
+        if not setup:
+            return
         settings, port = self.ebb, self.port
         ebb_motion.sendEnableMotors(port, settings.microstepping, False)
         ebb_motion.setPenUpPos(port, settings.position(settings.pen_up), False)

@@ -2,7 +2,7 @@
 
 :func:`ebb_commands` splits a text into commands (``\\r`` ends each; a ``\\n`` after it is
 ignored, as the firmware does); :class:`EbbMachine` gives them their meaning: ``SP`` raises and
-lowers the pen, ``TP`` toggles it, ``SM`` and ``XM`` move the motors (motor 1 turns by x + y,
+lowers the pen, ``TP`` toggles it, ``SM`` and ``XM`` move the motors, ``HM`` moves them home (motor 1 turns by x + y,
 motor 2 by x - y, so the head is at ((m1 + m2) / 2, (m1 - m2) / 2) in steps), ``EM``, ``SC``
 and the queries draw nothing.  A drawn polyline's vertices are where the program rests with the
 pen down (``SM,<ms>,0,0``, :data:`~foldfab.programs.ebb.VERTEX_MARK`); a program without such
@@ -66,6 +66,7 @@ class EbbMachine(Machine):
         super().__init__("ebb", device, frame, known)
         x, y = device.park_units
         self.motors = [int(x + y), int(x - y)]
+        self.home = tuple(self.motors)  # where EM counted from: HM goes back there
         self.position = (float(x), float(y))
         self.travel_from = self.position
         self.unmarked: list[tuple[float, float]] = []  # pen-down move ends since the last mark
@@ -102,6 +103,9 @@ class EbbMachine(Machine):
             if name == "XM":
                 s1, s2 = s1 + s2, s1 - s2
             self.step(s1, s2)
+        elif name == "HM" and args and args[0] > 0:
+            target = args[1:3] if len(args) >= 3 else self.home
+            self.step(target[0] - self.motors[0], target[1] - self.motors[1])
         elif name not in QUIET:
             self.result.ignored.append(f"{name} at byte {command.offset}")
 

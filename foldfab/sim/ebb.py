@@ -40,7 +40,7 @@ if TYPE_CHECKING:
 VERSION = "EBBv13_and_above EB Firmware Version 2.8.1"
 FIFO = 1
 """Motion commands the board holds besides the one executing (firmware 2.x)."""
-MOTION = frozenset({"SM", "XM", "SP", "TP"})
+MOTION = frozenset({"SM", "XM", "SP", "TP", "HM"})
 COMMAND_LIMIT = 64
 """Bytes a command may have before the board gives up on it."""
 
@@ -65,10 +65,13 @@ class TimedEbb(Timed, EbbMachine):
             self._emit(self.delay, self.position, 0.0)
 
     def timed_step(self, command: EbbCommand) -> None:
-        """``SM``/``XM``: the move takes its milliseconds (a rest too)."""
-        start = self.position
+        """``SM``/``XM``: the move takes its milliseconds (a rest too); ``HM`` its steps at its rate."""
+        start, start_motors = self.position, list(self.motors)
         self.execute(command)
         seconds = command.args[0] / 1000
+        if command.name == "HM":  # the motor with more steps to go runs at the rate
+            m1, m2 = (abs((a - b) * 1.0) for a, b in zip(start_motors, self.motors))
+            seconds = max(m1, m2) / command.args[0]
         length = abs(complex(*self.position) - complex(*start)) / self.device.units_per_mm
         self._emit(seconds, start, length / seconds if seconds else 0.0)
 
@@ -146,7 +149,7 @@ class EbbBoard(Simulator):
         elif command.error:
             self._error(f"bad parameter '{name}'")
         elif name in MOTION:
-            if name in ("SM", "XM") and (len(args) < 2 or args[0] <= 0) or name == "SP" and (
+            if name in ("SM", "XM", "HM") and (len(args) < 2 - (name == "HM") or args[0] <= 0) or name == "SP" and (
                     not args or args[0] not in (0, 1)):
                 self._error(f"bad parameter '{name}'")
             else:
