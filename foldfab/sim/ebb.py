@@ -23,8 +23,11 @@ Err: ...`` (default 8) and does not execute it; noise, stalls, ``mute``, ``disco
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from foldfab.programs.machine import Interpretation
 from foldfab.programs.read_ebb import EbbMachine, parse_command
@@ -194,6 +197,10 @@ class EbbBoard(Simulator):
         queued = max(len(self.planner) - 1, 0)
         down = self.machine.stroke is not None
         self.previous = self.strokes
+        if block is not None and block.feed and down and self.previous:  # drawn up to where it stopped
+            last = self.previous[-1]
+            here = self.frame.to_sheet([(x, y)])
+            self.previous[-1] = dataclasses.replace(last, points=np.vstack([last.points, here]))
         self.machine = self._new_machine([round(x + y), round(x - y)])
         if down:  # the pen stays down: what follows draws from here
             self.machine.lower_pen(self.base)
