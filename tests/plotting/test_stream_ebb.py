@@ -193,3 +193,17 @@ def test_a_port_that_is_not_an_ebb_is_refused():
 def test_locate_says_the_position_is_unknown():
     device = load_device("axidraw-v3")
     assert locate_pen(port_for(device), device) is None
+
+
+@pytest.mark.parametrize("name", AXIDRAWS)
+@pytest.mark.parametrize("job", JOBS, ids=[j.stem for j in JOBS])
+def test_resume_program_draws_exactly_the_remaining_strokes(job, name):
+    """From home (HM), the setup, a pen-up move to the stroke, then the program from its SP,0."""
+    device = load_device(name)
+    program = fabricated(job, name).program
+    strokes = wanted(program, device)
+    for index in sorted({0, 1, len(strokes) // 2, len(strokes) - 1}):
+        resumed = resume_program(program, device, index)
+        assert resumed.text.startswith("SP,1,150\rHM,")
+        assert resumed.text.endswith(program.text[strokes[index].offset:])
+        assert same_strokes(wanted(resumed, device), strokes[index:]), index
