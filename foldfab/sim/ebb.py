@@ -89,8 +89,6 @@ class EbbBoard(Simulator):
 
     def __init__(self, device: DeviceProfile, options: SimOptions):
         super().__init__(device, options)
-        self.line = bytearray()
-        self.line_start = 0
         self.waiting: EbbCommand | None = None  # a motion command waiting for FIFO room
         self.count = 0
         self.previous: list[Stroke] = []  # drawn before an emergency stop
@@ -123,24 +121,16 @@ class EbbBoard(Simulator):
                 command, self.waiting = self.waiting, None
                 self._motion(command)
                 continue
-            if not self.rx:
-                return
-            if not self.line:
-                self.line_start = self.base
-            eol = self.COMPLETES.search(self.rx)
-            if eol is None:
-                self.line += self.rx
-                self._free(self.base + len(self.rx))
+            line = self._read_line()
+            if line is None:
                 if len(self.line) > COMMAND_LIMIT:
                     self._error(f"command too long ({len(self.line)} bytes)")
                     self.line.clear()
                 return
-            self.line += self.rx[:eol.start()]
-            self._free(self.base + eol.end())
-            raw = self.line.decode("latin-1").strip("\n ")
-            self.line.clear()
+            raw, start, _ = line
+            raw = raw.strip("\n ")
             if raw:
-                self._command(parse_command(raw[:COMMAND_LIMIT], self.line_start))
+                self._command(parse_command(raw[:COMMAND_LIMIT], start))
 
     def _command(self, command: EbbCommand) -> None:
         self.count += 1

@@ -13,14 +13,13 @@ from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.fabricate import fabricate
 from foldfab.plotting.engines.base import StreamStopped
-from foldfab.plotting.progress import JobProgress
 from foldfab.plotting.resume import resume_program
 from foldfab.plotting.stream import locate_pen, stream
 from foldfab.plotting.transport import open_port
 from foldfab.programs.interpret import interpret
 from helpers import JOBS, ROOT
 from helpers.plans import spec
-from helpers.resumes import leading_matches
+from helpers.resumes import leading_matches, stop_and_resume
 from helpers.streams import FAST_BAUD, Spy, same_strokes
 
 AXIDRAWS = ["axidraw-v3", "axidraw-se-a3"]
@@ -32,9 +31,10 @@ def fabricated(job, name: str):
     return fabricate(load_design(job), load_device(name), spec(sheet=SHEETS[name], scale="fit"))
 
 
-def port_for(device, options: str = "", time: str = "instant") -> Spy:
+def port_for(device, options: str = "") -> Spy:
+    """A sim:// port on the profile's sheet, ``options`` a query (default ``time=instant``)."""
     sheet = SHEETS[device.name].replace(" ", "%20")
-    url = f"sim://?time={time}&sheet={sheet}" + (f"&{options}" if options else "")
+    url = f"sim://?sheet={sheet}&" + (options or "time=instant")
     return Spy(open_port(url, device, baudrate=FAST_BAUD))
 
 
@@ -98,31 +98,6 @@ def test_pauses_wait_for_the_motors_then_ask_the_operator():
     assert same_strokes(port.simulator.strokes, wanted(program, device))
 
 
-def stop_and_resume(device, program, options: str, cancel_after: int | None = None):
-    """Stream until it stops; let the board finish; resume on a fresh board."""
-    port = port_for(device, options)
-    cancel = threading.Event()
-    if cancel_after is not None:
-        write = port._port.write
-
-        def counting(data):
-            if len(port.written) > cancel_after:
-                cancel.set()
-            return write(data)
-        port._port.write = counting
-    with pytest.raises(StreamStopped) as stopped:
-        stream(port, program, device, cancel=cancel, operator=lambda m: True, stall_timeout=1.0)
-    first = port.simulator
-    first.run_until_idle()
-    stop = stopped.value
-    want = wanted(program, device)
-    index = JobProgress(program, device).strokes_done(stop.acknowledged)
-    second = port_for(device)
-    resumed = resume_program(program, device, index, stop.pauses_done)
-    stream(second, resumed, device, operator=lambda m: True)
-    return stop, first, second.simulator, index, want
-
-
 @pytest.mark.parametrize("fault, options, message", [
     ("cancel", "", "stopped on request"),
     ("error", "error_at=300", r"answered '!8 Err: injected fault' to 'S[MP],"),
@@ -132,8 +107,9 @@ def stop_and_resume(device, program, options: str, cancel_after: int | None = No
 def test_a_stop_lifts_the_pen_homes_and_the_resume_completes_the_drawing(fault, options, message):
     device = load_device("axidraw-v3")
     program = fabricated(VASE, "axidraw-v3").program
-    stop, first, second, index, want = stop_and_resume(
-        device, program, options, cancel_after=6000 if fault == "cancel" else None)
+    stop, port, second, index, want = stop_and_resume(
+        device, program, options, cancel_after=6000 if fault == "cancel" else None, ports=port_for)
+    first = port.simulator
     assert re.search(message, str(stop)), str(stop)
     assert stop.cancelled == (fault == "cancel")
     if fault != "disconnect":  # ES, pen up, home
@@ -176,7 +152,7 @@ def test_a_cancel_stops_the_motors_at_once():
 def test_a_silent_board_is_a_clear_fault(options, words):
     device = load_device("axidraw-v3")
     program = fabricated(VASE, "axidraw-v3").program
-    port = port_for(device, options, time="fast")
+    port = port_for(device, f"time=fast&{options}")
     with pytest.raises(StreamStopped, match=words):
         stream(port, program, device, stall_timeout=1.0)
 
