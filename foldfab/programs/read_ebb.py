@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Iterator, NamedTuple
 
-from foldfab.programs.machine import Interpretation, Machine, PauseEvent
+from foldfab.programs.machine import Interpretation, Machine
 
 if TYPE_CHECKING:
     from foldfab.programs.program import PauseMark
@@ -85,10 +85,8 @@ class EbbMachine(Machine):
         return self.finish()
 
     def pause(self, mark: PauseMark) -> None:
-        self.lift()
+        super().pause(mark)
         self.flush_travel()  # the head rests at a pause: the moves before and after are two
-        self.result.pauses.append(PauseEvent(mark.message, self.sheet_point(self.position),
-                                             mark.offset, len(self.result.strokes)))
 
     def execute(self, command: EbbCommand) -> None:
         name, args = command.name, command.args
