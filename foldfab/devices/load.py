@@ -10,9 +10,10 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
 
     name = "graphtec-ce6000"        # required
     model = "Graphtec CE6000"       # required, free text
-    protocol = "hpgl"               # required: "hpgl" | "gcode"
-    dialect = "graphtec"            # hpgl: "hp" | "graphtec" | "roland" (required); gcode: "grbl"
-    units_per_mm = 40               # hpgl only, default 40 (1016 per inch)
+    protocol = "hpgl"               # required: "hpgl" | "gcode" | "ebb"
+    dialect = "graphtec"            # hpgl: "hp" | "graphtec" | "roland" (required); gcode: "grbl";
+                                    # ebb: "axidraw"
+    units_per_mm = 40               # hpgl, default 40 (1016 per inch); ebb: motor steps per mm, default 80
     origin = "bottom-right"         # sheet corner at the device origin; must agree with the axes
     x_axis = "up"                   # direction of device +x on the sheet: right | left | up | down
     y_axis = "left"                 # direction of device +y; perpendicular to x_axis
@@ -37,6 +38,9 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
                z_speed (mm/s, required with a Z height); or tool = "laser" (default "pen") with
                spindle_max (GRBL's $30, required) and spindle_min (GRBL's $31, default 0), no
                pen_up or z_speed: the beam is switched by M4/M5 and is off on G0 moves
+    [ebb]      ebb only (required): pen_up, pen_down (servo height, percent), raise_rate,
+               lower_rate (percent), servo_min, servo_max (pulse, 1/12 MHz units),
+               servo_sweep_time (ms), microstepping (EM mode 1..5), time_slice (s)
     [layers.valley], [layers.mountain], [layers.cut] (required; other names allowed):
                pen (required), force, speed (default motion.draw_speed), passes = 1,
                pen_down (gcode only, required: Z height or servo command, same kind as pen_up);
@@ -59,8 +63,8 @@ from foldfab.devices.checks import (_MISSING, _PEN_POSITION, _TOOL_KEYS, README_
                                     _choice_number, _integer, _laser_power, _number, _pair, _pen_position, _range,
                                     _Reader, _text, parse_sheet)
 from foldfab.devices.profile import (DIALECTS, DIRECTIONS, FLOW_CONTROLS, PARITIES, REQUIRED_LAYERS, BufferSettings,
-                                     DeviceProfile, GcodeSettings, LayerDefaults, Limits, Motion, SerialSettings,
-                                     _origin_corner)
+                                     DeviceProfile, EbbSettings, GcodeSettings, LayerDefaults, Limits, Motion,
+                                     SerialSettings, _origin_corner)
 from foldfab.errors import FoldfabError
 from foldfab.xdg import foldfab_dir
 
@@ -124,21 +128,22 @@ def _corner_name(ex, ey) -> str:
 
 _ROOT_KEYS = ("name", "model", "protocol", "dialect", "units_per_mm", "x_axis", "y_axis", "origin", "origin_offset",
               "plottable_area", "sheet", "port", "tool_changer", "serial", "buffer", "motion", "limits", "gcode",
-              "layers")
+              "layers", "ebb")
 """Every key at the top of a device profile."""
 
 
 def _parse(root: _Reader) -> DeviceProfile:
     name = root.take("name", "a device name", _text)
     model = root.take("model", "a model description", _text)
-    protocol = root.take("protocol", '"hpgl" or "gcode"', _choice(DIALECTS))
+    protocol = root.take("protocol", '"hpgl", "gcode" or "ebb"', _choice(DIALECTS))
     dialects = DIALECTS[protocol]
-    default_dialect = "grbl" if protocol == "gcode" else _MISSING
+    default_dialect = {"gcode": "grbl", "ebb": "axidraw"}.get(protocol, _MISSING)
     dialect = root.take(
         "dialect", " or ".join(f'"{d}"' for d in dialects), _choice(dialects), default_dialect
     )
-    if protocol == "hpgl":
-        units = root.take("units_per_mm", "plotter units per mm > 0", _number(0, open_lo=True), 40.0)
+    if protocol in ("hpgl", "ebb"):
+        units = root.take("units_per_mm", "plotter units per mm > 0", _number(0, open_lo=True),
+                          40.0 if protocol == "hpgl" else EBB_STEPS_PER_MM)
     elif "units_per_mm" in root.data:
         raise root.fail("units_per_mm", "no units_per_mm (G-code is in mm)", root.data["units_per_mm"],
                         "remove it")
@@ -186,7 +191,7 @@ def _parse(root: _Reader) -> DeviceProfile:
         raise buf.fail("flow_control", f"a flow control enabled in [serial] "
                        f"({needs[buffer.flow_control][0]} = true)", buffer.flow_control,
                        f"set {needs[buffer.flow_control][0]} = true")
-    native = {"grbl": "gcode", "escb": "hpgl"}
+    native = {"grbl": "gcode", "escb": "hpgl", "ebb": "ebb"}
     if native.get(buffer.flow_control, protocol) != protocol:
         raise buf.fail("flow_control", f"a flow control for {protocol}", buffer.flow_control,
                        "grbl is for G-code devices, escb for HPGL ones")
@@ -245,7 +250,7 @@ def _parse(root: _Reader) -> DeviceProfile:
         origin=origin, x_axis=axes["x_axis"], y_axis=axes["y_axis"], origin_offset=offset,
         plottable_area=area, sheet=sheet, port=port, tool_changer=tool_changer, serial=serial,
         buffer=buffer, motion=motion, limits=limits, gcode=gcode, layers=MappingProxyType({}),
-        source=root.file,
+        source=root.file, ebb=_parse_ebb(root, protocol, buffer, motion, units),
     )
     layers_reader = root.table("layers")
     layers = {}
@@ -298,3 +303,50 @@ def _parse_laser(gc: _Reader) -> GcodeSettings:
         raise gc.fail("spindle_min", f"a value below spindle_max ({top:g})", low, "lower spindle_min")
     gc.done()
     return GcodeSettings(pen_up=None, z_speed=None, tool="laser", spindle_max=top, spindle_min=low)
+
+
+EBB_STEPS_PER_MM = 80.0
+"""AxiDraw's 2032 steps per inch along a belt at 16x microstepping (``native_res_factor`` x 2)."""
+EBB_MAX_STEP_RATE = 25000.0
+"""The EiBotBoard's highest step rate per motor, steps/s."""
+
+
+def _parse_ebb(root: _Reader, protocol: str, buffer: BufferSettings, motion: Motion,
+               units: float) -> EbbSettings | None:
+    """The ``[ebb]`` table: required in an EBB profile, refused in any other."""
+    table = root.table("ebb", required=protocol == "ebb",
+                       keys=("pen_up", "pen_down", "raise_rate", "lower_rate", "servo_min", "servo_max",
+                             "servo_sweep_time", "microstepping", "time_slice"))
+    if table is None:
+        return None
+    if protocol != "ebb":
+        raise root.fail("ebb", f"no [ebb] table in a {protocol} profile", "[ebb]", "remove it")
+    if buffer.flow_control != "ebb":
+        raise FoldfabError(f"{root.file}: key 'buffer.flow_control': expected \"ebb\" (an EiBotBoard "
+                           f"answers every command), got {buffer.flow_control!r}; set it to \"ebb\"")
+    if motion.junction_deviation is not None:
+        raise FoldfabError(f"{root.file}: key 'motion.junction_deviation': expected none in an EBB "
+                           "profile (foldfab's EBB programs stop at every corner); remove it")
+    # a diagonal move turns one motor sqrt(2) times as fast as the head moves
+    fastest = EBB_MAX_STEP_RATE / (units * 2 ** 0.5)
+    if motion.travel_speed > fastest:
+        raise FoldfabError(f"{root.file}: key 'motion.travel_speed': expected at most {fastest:.1f} mm/s "
+                           f"(25,000 steps/s per motor at {units:g} steps/mm), got {motion.travel_speed:g}; "
+                           "lower it")
+    percent, positive = _number(0, 100), _number(0, open_lo=True)
+    settings = EbbSettings(
+        pen_up=table.take("pen_up", "a height in percent, 0..100", percent),
+        pen_down=table.take("pen_down", "a height in percent, 0..100", percent),
+        raise_rate=table.take("raise_rate", "a rate in percent, 1..200", _number(1, 200)),
+        lower_rate=table.take("lower_rate", "a rate in percent, 1..200", _number(1, 200)),
+        servo_min=table.take("servo_min", "a servo pulse 1..65535", _integer(1, 65535), 9855),
+        servo_max=table.take("servo_max", "a servo pulse 1..65535", _integer(1, 65535), 27831),
+        servo_sweep_time=table.take("servo_sweep_time", "ms > 0", positive, 200.0),
+        microstepping=table.take("microstepping", "an EM mode 1..5", _integer(1, 5), 1),
+        time_slice=table.take("time_slice", "seconds, 0.005..0.5", _number(0.005, 0.5), 0.025),
+    )
+    if settings.pen_down == settings.pen_up:
+        raise table.fail("pen_down", f"a height other than pen_up ({settings.pen_up:g})", settings.pen_down,
+                         "lower pen_down or raise pen_up")
+    table.done()
+    return settings

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 REQUIRED_LAYERS = ("valley", "mountain", "cut")
 DIRECTIONS = {"right": (1, 0), "left": (-1, 0), "down": (0, 1), "up": (0, -1)}
 PARITIES = {"none": "N", "even": "E", "odd": "O", "mark": "M", "space": "S"}
-FLOW_CONTROLS = ("xonxoff", "rtscts", "escb", "grbl", "none")
+FLOW_CONTROLS = ("xonxoff", "rtscts", "escb", "grbl", "none", "ebb")
 
 
 @dataclass(frozen=True)
@@ -46,6 +46,8 @@ DIALECTS = {
         "roland": Dialect(force=True, force_step=1.0, speed_step=10.0),
     },
     "gcode": {"grbl": Dialect(force=False, force_step=None, speed_step=None)},
+    # EiBotBoard: speeds are step rates over time slices, practically continuous
+    "ebb": {"axidraw": Dialect(force=False, force_step=None, speed_step=None)},
 }
 
 
@@ -139,6 +141,39 @@ class GcodeSettings:
 
 
 @dataclass(frozen=True)
+class EbbSettings:
+    """An EiBotBoard's pen-lift servo and stepper settings (AxiDraw's own names and units)."""
+
+    pen_up: float
+    """Pen-up height, percent of the servo's range (AxiDraw ``pen_pos_up``)."""
+    pen_down: float
+    """Pen-down height, percent (AxiDraw ``pen_pos_down``)."""
+    raise_rate: float
+    """Raising speed, percent (AxiDraw ``pen_rate_raise``)."""
+    lower_rate: float
+    """Lowering speed, percent (AxiDraw ``pen_rate_lower``)."""
+    servo_min: int = 9855
+    """Servo pulse at 0 %, in 1/12 MHz units (AxiDraw ``servo_min``)."""
+    servo_max: int = 27831
+    """Servo pulse at 100 % (AxiDraw ``servo_max``)."""
+    servo_sweep_time: float = 200.0
+    """ms the servo signal takes over the whole range at 100 % rate (AxiDraw ``servo_sweep_time``)."""
+    microstepping: int = 1
+    """``EM`` mode: 1 = 16x (AxiDraw's high resolution), 2 = 8x, ... 5 = full steps."""
+    time_slice: float = 0.025
+    """Seconds per ``SM`` move while accelerating (AxiDraw ``time_slice``)."""
+
+    def position(self, percent: float) -> int:
+        """The ``SC,4``/``SC,5`` servo pulse for a height in percent (as AxiDraw computes it)."""
+        return int(round(self.servo_min + (self.servo_max - self.servo_min) * percent / 100.0))
+
+    def rate(self, percent: float) -> int:
+        """The ``SC,11``/``SC,12`` servo rate for a rate in percent: the pulse change per 24 ms
+        servo cycle that sweeps the whole range in ``servo_sweep_time`` at 100 %."""
+        return int(round((self.servo_max - self.servo_min) * 0.24 / self.servo_sweep_time * percent))
+
+
+@dataclass(frozen=True)
 class LayerDefaults:
     """Profile defaults for one layer name."""
 
@@ -217,20 +252,23 @@ class DeviceProfile:
     gcode: GcodeSettings | None
     layers: Mapping[str, LayerDefaults]
     source: str
+    ebb: EbbSettings | None = None
+    """EiBotBoard settings (``protocol = "ebb"`` only)."""
 
     @property
     def resolution(self) -> float:
         """The smallest step a program for this device expresses, mm: one plotter unit in
-        HP-GL, the last of the :data:`GCODE_DECIMALS` decimals G-code coordinates are written with.
+        HP-GL, one motor step on an EiBotBoard, the last of the :data:`GCODE_DECIMALS` decimals
+        G-code coordinates are written with.
         Optimization merges and simplifies within it, so the program moves nothing further."""
-        return 1.0 / self.units_per_mm if self.protocol == "hpgl" else 10.0 ** -GCODE_DECIMALS
+        return 1.0 / self.units_per_mm if self.protocol != "gcode" else 10.0 ** -GCODE_DECIMALS
 
     @property
     def park_units(self) -> tuple[float, float]:
         """The park position in device units as programs write it (whole plotter units in
         HP-GL): where the pen waits at pauses and at the end, and so where a job starts."""
         x, y = (v * self.units_per_mm for v in self.motion.park)
-        return (round(x), round(y)) if self.protocol == "hpgl" else (x, y)
+        return (round(x), round(y)) if self.protocol != "gcode" else (x, y)
 
     @property
     def laser(self) -> bool:

@@ -267,6 +267,11 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
     # HPGL selects the tool, then moves (as the writer does); G-code's travel is a G0, so the
     # motion mode and feed are restored after it.
     prelude = head + (state + travel if program.protocol == "hpgl" else travel + state)
+    if program.protocol == "ebb":  # relative moves: home first (HM), then from there
+        from foldfab.programs.ebb import homing
+
+        head = homing(device) + preamble
+        prelude = head + travel
     shift = len(prelude) - cut
     pauses = [PauseMark(len(head), pending[0].step, " ".join(p.message for p in pending))] \
         if pending else []
@@ -400,12 +405,14 @@ def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: in
 def _tolerance(program: Program) -> float:
     """How far apart two pen positions (device units) still match: half a plotter unit, GRBL's
     3 decimals."""
-    return 0.5 if program.protocol == "hpgl" else 0.0015
+    return 0.5 if program.protocol != "gcode" else 0.0015
 
 
 def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
     """Commands restoring the tool state ``program`` has set by byte ``offset``."""
     text = program.text[:offset]
+    if program.protocol == "ebb":
+        return ""  # the servo settings are in the preamble; speeds are in the moves themselves
     if program.protocol == "hpgl":
         from foldfab.programs.read_hpgl import HPGLTokenizer
 
@@ -441,6 +448,10 @@ def _travel(device: DeviceProfile, point, protocol: str) -> str:
     x, y = device.frame(device.sheet).to_device(np.asarray([point]))[0].tolist()
     if protocol == "hpgl":
         return f"PU{round(x)},{round(y)};"
+    if protocol == "ebb":
+        from foldfab.programs.ebb import travel
+
+        return travel(device, np.asarray([x, y]))
     return f"G0 X{fmt_number(x, 3)} Y{fmt_number(y, 3)}\n"
 
 

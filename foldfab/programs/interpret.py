@@ -8,7 +8,7 @@ than bare text, strokes are also labelled with their plan step, layer and
 repetition, and HPGL pauses (which exist only as offsets) are placed.
 
 This module dispatches by protocol: the languages' readers are :mod:`~foldfab.programs.read_hpgl`
-and :mod:`~foldfab.programs.read_gcode`; what they draw is in :mod:`~foldfab.programs.machine`.
+, :mod:`~foldfab.programs.read_gcode` and :mod:`~foldfab.programs.read_ebb`; what they draw is in :mod:`~foldfab.programs.machine`.
 """
 
 from __future__ import annotations
@@ -17,12 +17,17 @@ from typing import TYPE_CHECKING, Iterator
 
 from foldfab.errors import FoldfabError
 from foldfab.programs.machine import Interpretation, Machine
+from foldfab.programs.read_ebb import EbbMachine, ebb_commands
 from foldfab.programs.read_gcode import GcodeMachine
 from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
     from foldfab.programs.program import Program
+
+
+MACHINES = {"hpgl": HPGLMachine, "gcode": GcodeMachine, "ebb": EbbMachine}
+"""The reader of each protocol."""
 
 
 def interpret(program: Program | str, device: DeviceProfile,
@@ -39,7 +44,7 @@ def interpret(program: Program | str, device: DeviceProfile,
     if known is not None and known.protocol != device.protocol:
         raise FoldfabError(f"a {known.protocol} program cannot run on {device.name} "
                            f"({device.protocol})")
-    machine = (HPGLMachine if device.protocol == "hpgl" else GcodeMachine)(device, frame, known)
+    machine = MACHINES[device.protocol](device, frame, known)
     machine.position = device.park_units  # where the last job left the pen, as the optimizer assumes
     return machine.run(text)
 
@@ -57,6 +62,16 @@ def pen_states(text: str, protocol: str, device: DeviceProfile) -> Iterator[tupl
             machine.at = command.offset
             machine.execute(command)
             yield end, machine
+        return
+    if protocol == "ebb":
+        machine = EbbMachine(device, frame, None)
+        end = 0
+        for command, end in ebb_commands(text):
+            machine.at = command.offset
+            machine.execute(command)
+            yield end, machine
+        if not end:
+            yield len(text), machine
         return
     machine = GcodeMachine(device, frame, None)
     offset = 0

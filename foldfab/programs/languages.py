@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Callable
 
+from foldfab.programs.ebb import write_ebb
 from foldfab.programs.gcode import write_gcode
 from foldfab.programs.hpgl import write_hpgl
 
@@ -17,10 +18,11 @@ if TYPE_CHECKING:
     from foldfab.fabrication.plan import PlotPlan
     from foldfab.programs.program import Program
 
-WRITERS: dict[str, Callable[[PlotPlan, DeviceProfile], Program]] = {"hpgl": write_hpgl, "gcode": write_gcode}
+WRITERS: dict[str, Callable[[PlotPlan, DeviceProfile], Program]] = {"hpgl": write_hpgl, "gcode": write_gcode,
+                                                                       "ebb": write_ebb}
 """The program writer of each protocol (``DeviceProfile.protocol``)."""
 
 
 def write_program(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """Write ``plan`` in the device's language (HP-GL or G-code)."""
+    """Write ``plan`` in the device's language (HP-GL, G-code or EBB)."""
     return WRITERS[device.protocol](plan, device)

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import DeviceProfile, Frame
-    from foldfab.programs.program import Program, Section
+    from foldfab.programs.program import PauseMark, Program, Section
 
 
 @dataclass
@@ -152,6 +152,12 @@ class Machine:
             self.travel_ends.extend(self.position + target)
             self.travel_next.append(len(self.result.strokes))
         self.position = target
+
+    def pause(self, mark: PauseMark) -> None:
+        """The device stops at ``mark`` for the operator (a language whose pauses are offsets)."""
+        self.lift()
+        self.result.pauses.append(PauseEvent(mark.message, self.sheet_point(self.position),
+                                             mark.offset, len(self.result.strokes)))
 
     def sheet_point(self, point: tuple[float, float]) -> tuple[float, float]:
         x, y = self.frame.to_sheet(point)[0].tolist()

@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 from typing import TYPE_CHECKING, NamedTuple
 
-from foldfab.programs.machine import Interpretation, Machine, PauseEvent
+from foldfab.programs.machine import Interpretation, Machine
 
 if TYPE_CHECKING:
     from foldfab.programs.program import PauseMark
@@ -265,11 +265,6 @@ class HPGLMachine(Machine):
             while marks and marks[0].offset <= command.offset:
                 self.pause(marks.pop(0))
             self.execute(command)
-
-    def pause(self, mark: PauseMark) -> None:
-        self.lift()
-        self.result.pauses.append(PauseEvent(mark.message, self.sheet_point(self.position),
-                                             mark.offset, len(self.result.strokes)))
 
     def execute(self, command: HPGLCommand) -> None:
         name, params = command.name, command.params

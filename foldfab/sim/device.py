@@ -114,6 +114,8 @@ class Simulator:
         self._job_bytes = 0  # bytes received before it
         self._job_drawn = 0.0  # mm drawn before it
         self._overrunning = False
+        self.line = bytearray()  # the line being read, for protocols read line by line
+        self.line_start = 0  # its stream offset
         serial = device.serial
         self.configure_wire(serial.baudrate, serial.bytesize, serial.parity, serial.stopbits)
 
@@ -493,6 +495,26 @@ class Simulator:
             self.stats.xon_sent += 1
         if not self.swallow_flow_bytes:
             self._send(bytes([byte]))
+
+    def _read_line(self) -> tuple[str, int, int] | None:
+        """Take the next whole line out of the buffer: (its text without the terminator, its
+        start offset, the offset after the terminator).  None while it is incomplete: what has
+        arrived of it waits in :attr:`line`."""
+        if not self.rx:
+            return None
+        if not self.line:
+            self.line_start = self.base
+        eol = self.COMPLETES.search(self.rx)
+        if eol is None:
+            self.line += self.rx
+            self._free(self.base + len(self.rx))
+            return None
+        self.line += self.rx[:eol.start()]
+        end = self.base + eol.end()
+        self._free(end)
+        raw = self.line.decode("latin-1")
+        self.line.clear()
+        return raw, self.line_start, end
 
     def reply(self, text: str) -> None:
         """Send ``text`` and the protocol's line terminator (lost when mute or unplugged)."""

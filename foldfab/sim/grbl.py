@@ -68,8 +68,6 @@ class GrblController(Simulator):
     def __init__(self, device: DeviceProfile, options: SimOptions):
         super().__init__(device, options)
         self.alarm = False
-        self.line = bytearray()  # the line being read (GRBL's line[] plus comments)
-        self.line_start = 0  # its stream offset
         self.waiting: tuple[GcodeLine, int] | None = None  # read, waits for the planner
         self.lines = 0
         self.ok_on_resume = False  # M0's ok is sent by the ~ that ends it
@@ -126,21 +124,10 @@ class GrblController(Simulator):
                     return
                 self.waiting = None
                 continue
-            if not self.rx:
+            line = self._read_line()
+            if line is None:
                 return
-            if not self.line:
-                self.line_start = self.base
-            eol = self.COMPLETES.search(self.rx)
-            if eol is None:
-                self.line += self.rx
-                self._free(self.base + len(self.rx))
-                return
-            self.line += self.rx[:eol.start()]
-            end = self.base + eol.end()
-            self._free(end)
-            raw = self.line.decode("latin-1")
-            self.line.clear()
-            self._line(raw, self.line_start, end)
+            self._line(*line)
 
     def _line(self, raw: str, start: int, end: int) -> None:
         self.lines += 1

@@ -130,7 +130,7 @@ DEVICE_FILES = sorted((ROOT / "devices").glob("*.toml"))
 def test_every_example_job_exports_previews_and_plots_on_every_device(tmp_path, capsys, monkeypatch, job, device):
     """Every job in jobs/ on every profile in devices/, with no option but --device (and --port)."""
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
-    suffix = ".gcode" if load_device(device).protocol == "gcode" else ".plt"
+    suffix = {"gcode": ".gcode", "ebb": ".ebb"}.get(load_device(device).protocol, ".plt")
     code, out, err = run(capsys, "export", job, "--device", device, "-o", tmp_path / f"x{suffix}")
     assert code == 0 and "foldfab: error" not in err, err
     assert (tmp_path / f"x{suffix}").stat().st_size > 0 and "placement    scale " in out

@@ -91,7 +91,7 @@ def expected_strokes(plan: PlotPlan, dots: bool = True) -> list[tuple[int, int, 
 def assert_round_trip(plan: PlotPlan, device: DeviceProfile, program: Program) -> None:
     """The program draws every line of the plan on its pass, with its tool, and nothing else."""
     result = interpret(program, device, plan.sheet)
-    tolerance = 0.5 / device.units_per_mm * math.sqrt(2) + 1e-9 if device.protocol == "hpgl" \
+    tolerance = 0.5 / device.units_per_mm * math.sqrt(2) + 1e-9 if device.protocol != "gcode" \
         else 0.0005 * math.sqrt(2) + 1e-9
     expected = expected_strokes(plan, dots=not device.laser)
     assert result.ignored == []
