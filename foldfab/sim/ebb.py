@@ -32,7 +32,7 @@ import numpy as np
 from foldfab.programs.machine import Interpretation
 from foldfab.programs.read_ebb import EbbMachine, parse_command
 from foldfab.sim.device import Simulator
-from foldfab.sim.motion import Block, Timed
+from foldfab.sim.motion import Timed
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
