@@ -33,6 +33,8 @@ if TYPE_CHECKING:
     from foldfab.sim.device import Simulator
 
 READ_CHUNK = 4096
+PRINTER_FIFO = 512
+"""Bytes the simulated printer's endpoint holds beyond its command buffer."""
 MIN_WAIT = 0.0005  # wall seconds: the shortest sleep of the serving loop
 _STATUS: dict[str, Callable[[], int]] = {}
 _STATUS_LOCK = threading.Lock()
@@ -69,7 +71,7 @@ def serve_printer(link: UsbLink, ready: Callable[[str], None], stop: threading.E
 def printer_thread(sim: Simulator, paper_out_after: int | None = None
                    ) -> tuple[str, UsbLink, threading.Event, threading.Thread]:
     """Serve ``sim`` as a printer device on a daemon thread: (path, link, stop event, thread)."""
-    link = UsbLink(sim, paper_out_after)
+    link = UsbLink(sim, paper_out_after, fifo=PRINTER_FIFO)
     stop, opened, found = threading.Event(), threading.Event(), []
 
     def ready(path: str) -> None:

@@ -1,10 +1,11 @@
 """A simulated plotter or cutter behind a USB link instead of a serial wire.
 
-USB never loses a byte: a device whose buffer is full NAKs the host's bulk OUT packets and
-the host's transfer waits (a printer-class driver's ``write`` blocks; a libusb transfer runs
+USB never loses a byte: a device whose endpoint buffer (:attr:`UsbLink.fifo`, a packet or
+more; the firmware moves it into the command buffer as that has room) is full NAKs the host's
+bulk OUT packets and the host's transfer waits (a printer-class driver's ``write`` blocks; a libusb transfer runs
 into its timeout).  :class:`UsbLink` puts any foldfab simulator (:func:`foldfab.sim.create_simulator`,
-whatever its protocol) behind such a link: :meth:`UsbLink.accept` hands it only as many bytes
-as its receive buffer has room for, :meth:`UsbLink.take` gives the replies it has sent.  The
+whatever its protocol) behind such a link: :meth:`UsbLink.accept` takes only as many bytes
+as the endpoint buffer has room for, :meth:`UsbLink.take` gives the replies it has sent.  The
 link carries a byte in :data:`BYTE_TIME` (USB 1.1 full-speed bulk moves about a megabyte a
 second), so the device, not the link, sets the pace.
 
@@ -45,8 +46,11 @@ class Unplugged(OSError):
 class UsbLink:
     """A simulator on the device end of a USB link (thread-safe: a lock guards it)."""
 
-    def __init__(self, sim: Simulator, paper_out_after: int | None = None):
+    def __init__(self, sim: Simulator, paper_out_after: int | None = None, fifo: int = 64):
         self.sim = sim
+        self.fifo = bytearray()
+        """Bytes the device's endpoint took that its command buffer has no room for yet."""
+        self.fifo_size = fifo
         sim.configure_wire(round(10 / BYTE_TIME), 8, "N", 1)  # 10 bits a byte: BYTE_TIME each
         self.paper_out = False
         """The device is out of paper (or its tray is empty): it takes no data and says so."""
@@ -66,27 +70,37 @@ class UsbLink:
         return sim
 
     def room(self) -> int:
-        """Bytes the device takes now: its buffer's free room (none while out of paper)."""
+        """Bytes the device's endpoint takes now (none while out of paper)."""
         with self.lock:
-            sim = self.check()
-            return 0 if self.paper_out else max(sim.free, 0)
+            self.check()
+            self.feed()
+            return 0 if self.paper_out else self.fifo_size - len(self.fifo)
 
     def accept(self, data: bytes) -> int:
-        """The host offers ``data``: the device takes what fits; returns how many it took."""
+        """The host offers ``data``: the endpoint takes what fits; returns how many it took."""
         with self.lock:
             count = min(len(data), self.room())
-            sim = self.sim
-            if sim.unplug_at is not None:  # the cable goes exactly there, even mid-transfer
-                count = min(count, sim.unplug_at - sim.stats.bytes_received)
-            if self.paper_out_after is not None:
-                count = min(count, self.paper_out_after - sim.stats.bytes_received)
-            if count <= 0:
-                return 0
-            sent, until = sim.transmit(bytes(data[:count]), max(sim.wire_free, sim.clock.now(), sim.t))
-            sim.clock.sleep_until(until)
-            if self.paper_out_after is not None and sim.stats.bytes_received >= self.paper_out_after:
-                self.paper_out, self.paper_out_after = True, None
-            return sent
+            self.fifo += data[:count]
+            self.feed()
+            return count
+
+    def feed(self) -> bool:
+        """Move endpoint bytes into the command buffer as far as it has room; False (so that it
+        can stand in a wait's condition) once the cable is pulled."""
+        sim = self.sim
+        count = min(len(self.fifo), max(sim.free, 0))
+        if sim.unplug_at is not None:  # the cable goes exactly there, even mid-transfer
+            count = min(count, sim.unplug_at - sim.stats.bytes_received)
+        if self.paper_out_after is not None:
+            count = min(count, self.paper_out_after - sim.stats.bytes_received)
+        if count > 0 and not sim.disconnected and not self.paper_out:
+            sent, until = sim.transmit(bytes(self.fifo[:count]), max(sim.wire_free, sim.clock.now(), sim.t))
+            del self.fifo[:sent]
+            if sim.clock.rate is None:
+                sim.clock.sleep_until(until)
+        if self.paper_out_after is not None and sim.stats.bytes_received >= self.paper_out_after:
+            self.paper_out, self.paper_out_after = True, None
+        return not sim.disconnected
 
     def take(self, size: int) -> bytes:
         """Up to ``size`` reply bytes the device has sent."""
@@ -107,14 +121,17 @@ class UsbLink:
         """Let the device run up to now (``instant``: through its next events, a bounded number)."""
         with self.lock:
             sim = self.check()
+            self.feed()
             if sim.clock.rate is not None:
                 return
             for _ in range(INSTANT_EVENTS):
+                self.feed()
                 upcoming = min(sim.next_event(), sim.next_arrival())
                 if upcoming == math.inf:
                     break
                 sim.clock.sleep_until(upcoming)
                 sim.advance(upcoming)
+            self.feed()
 
     def wait(self, ready: Callable[[], bool], timeout: float | None) -> bool:
         """Block until ``ready()`` or ``timeout`` virtual seconds have passed (None: no limit);
@@ -128,7 +145,7 @@ class UsbLink:
                     return True
                 if clock.rate is None:
                     limit = None if deadline == math.inf else deadline
-                    if sim.run_until(lambda: ready() or sim.disconnected, limit):
+                    if sim.run_until(lambda: (self.feed() and ready()) or sim.disconnected, limit):
                         clock.sleep_until(sim.t)
                         self.check()
                         return True

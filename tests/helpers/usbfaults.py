@@ -21,7 +21,8 @@ FAULTS = {
     "unplug": ("time=instant&disconnect_after=3000", None, "device disconnected"),
     # hung for good (instant time would run through any stall at once)
     "stall": ("time=fast&stall=1e9&stall_at=3000", None, "did not answer OE|took no data"),
-    "paper-out": ("time=instant", 3000, "paper out: load the sheet"),
+    # a printer device says so; on raw USB the cutter just takes nothing (the protocol's status tells)
+    "paper-out": ("time=instant", 3000, "paper out: load the sheet|took no data for .* an empty tray"),
 }
 
 

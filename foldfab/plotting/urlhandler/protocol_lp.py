@@ -27,11 +27,12 @@ import fcntl
 import os
 import select
 import struct
-import threading
 import time
 from urllib.parse import unquote, urlsplit
 
-from serial.serialutil import PortNotOpenError, SerialBase, SerialException, SerialTimeoutException
+from serial.serialutil import PortNotOpenError, SerialException, SerialTimeoutException
+
+from foldfab.plotting.urlhandler.rawport import SLICE, RawPort, check_bytes
 
 LPGETSTATUS = 0x060B
 """linux/lp.h: the printer's status byte (``usblp`` answers it with GET_PORT_STATUS)."""
@@ -39,8 +40,6 @@ LP_PERRORP, LP_PSELECD, LP_POUTPA = 0x08, 0x10, 0x20
 """Status bits (linux/lp.h): no error (active low), selected (online), paper out."""
 WRITE_STALL = 30.0
 """Seconds a write may make no progress, when the port has no ``write_timeout``."""
-SLICE = 0.05
-"""Seconds of one poll: how soon a cancel or a status change is seen."""
 STATUS_EVERY = 0.5
 """Seconds between status reads while a write is held up."""
 READ_CHUNK = 4096
@@ -72,14 +71,12 @@ def status_problem(status: int | None) -> str | None:
     return None
 
 
-class Serial(SerialBase):
+class Serial(RawPort):
     """A printer-class device file behind pyserial's port API."""
 
     def __init__(self, *args, **kwargs):
         self.fd: int | None = None
         self.path = ""
-        self._rx = bytearray()
-        self._cancel = threading.Event()
         self._asked = 0.0  # when the status was last read
         super().__init__(*args, **kwargs)
 
@@ -105,9 +102,6 @@ class Serial(SerialBase):
             os.close(self.fd)
             self.fd = None
         self.is_open = False
-
-    def _reconfigure_port(self) -> None:
-        """Nothing to configure: a printer device has no line settings."""
 
     def _gone(self, why: str) -> SerialException:
         return SerialException(f"{self.path}: device disconnected ({why}): check the USB cable "
@@ -144,32 +138,15 @@ class Serial(SerialBase):
                 raise self._gone("end of file")
             self._rx += data
 
-    @property
-    def in_waiting(self) -> int:
-        if self._poll(select.POLLIN, 0):
+    def _receive(self, seconds: float) -> None:
+        if self._poll(select.POLLIN, seconds):
             self._fill()
-        return len(self._rx)
 
-    def read(self, size: int = 1) -> bytes:
-        self._cancel.clear()
-        deadline = None if self._timeout is None else time.monotonic() + self._timeout
-        while len(self._rx) < size and not self._cancel.is_set():
-            left = SLICE if deadline is None else min(SLICE, deadline - time.monotonic())
-            if self._poll(select.POLLIN, left):
-                self._fill()
-            elif deadline is not None and time.monotonic() >= deadline:
-                break
-        if len(self._rx) < size:  # a device out of paper or offline does not answer: say why
-            self._check_status()
-        data = bytes(self._rx[:size])
-        del self._rx[:size]
-        return data
+    def _answerless(self) -> None:
+        self._check_status()  # a device out of paper or offline does not answer: say why
 
     def write(self, data) -> int:
-        if isinstance(data, int) or not isinstance(data, (bytes, bytearray, memoryview)):
-            raise TypeError(f"write() takes bytes, not {type(data).__name__} "
-                            "(pyserial's write(int) would send that many zero bytes)")
-        data = memoryview(bytes(data))
+        data = memoryview(check_bytes(data))
         fd = self._fd()
         self._cancel.clear()
         limit = WRITE_STALL if self._write_timeout is None else self._write_timeout
@@ -206,46 +183,3 @@ class Serial(SerialBase):
         problem = status_problem(printer_status(self._fd(), self.path))
         if problem:
             raise SerialException(f"{self.path}: {problem}, then resume")
-
-    def flush(self) -> None:
-        """``write`` returns when the driver has taken everything."""
-        self._fd()
-
-    def reset_input_buffer(self) -> None:
-        self.in_waiting
-        self._rx.clear()
-
-    def reset_output_buffer(self) -> None:
-        self._fd()
-
-    def cancel_read(self) -> None:
-        self._cancel.set()
-
-    def cancel_write(self) -> None:
-        self._cancel.set()
-
-    # --- modem lines: a printer device has none; report them as a plain cable would -------------
-    @property
-    def cts(self) -> bool:
-        return True
-
-    @property
-    def dsr(self) -> bool:
-        return True
-
-    @property
-    def ri(self) -> bool:
-        return False
-
-    @property
-    def cd(self) -> bool:
-        return True
-
-    def _update_rts_state(self) -> None:
-        """No modem lines."""
-
-    def _update_dtr_state(self) -> None:
-        """No modem lines."""
-
-    def _update_break_state(self) -> None:
-        """No modem lines."""
