@@ -268,3 +268,9 @@ def _parse_layer(profile: DeviceProfile, reader: _Reader) -> LayerDefaults:
                               pen_down, "lower pen_down or raise pen_up")
     reader.done()
     return LayerDefaults(pen_down=pen_down, **values)
+
+
+def profile_origin(device: DeviceProfile) -> str:
+    """``built-in`` or ``user``: where ``device``'s profile comes from (``foldfab devices``)."""
+    builtin = _builtin_dir().resolve()
+    return "built-in" if builtin in Path(device.source).resolve().parents else "user"
