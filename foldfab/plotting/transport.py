@@ -1,9 +1,9 @@
 """Opening a plotter's port: device paths and pyserial URLs, with the profile's line settings.
 
 :func:`open_port` opens anything pyserial opens (``/dev/ttyUSB0``, ``socket://host:23``,
-``rfc2217://...``, ``spy://...``) and foldfab's own ``sim://`` simulators and ``lp://``
-printer-class devices (a path that is not a terminal, such as ``/dev/usb/lp0``, opens as
-``lp://``), applies the
+``rfc2217://...``, ``spy://...``) and foldfab's own handlers: ``sim://`` simulators,
+``lp://`` USB printer-class devices (a path that is not a terminal, such as
+``/dev/usb/lp0``, opens as ``lp://``) and ``usb://`` cutters on raw USB; it applies the
 device profile's ``[serial]`` settings and turns every failure into one
 :class:`~foldfab.errors.FoldfabError` naming the port and what to do.
 
@@ -136,6 +136,8 @@ def _advice(url: str, message: str) -> str:
     if "protocol" in message and "not known" in message:
         return ("use a device path (/dev/ttyUSB0, COM3) or a URL pyserial knows: socket://, "
                 "rfc2217://, spy://, loop://, or foldfab's sim://DEVICE")
+    if url.startswith("usb:"):
+        return "see foldfab ports for the USB cutters foldfab sees"
     if url.startswith("lp:"):
         return ("check that the cutter is connected and switched on (ls /dev/usb/ /dev/usblp*, "
                 "foldfab ports) and that you may use it (group lp: sudo usermod -aG lp $USER)")

@@ -24,10 +24,12 @@ import array
 import errno
 from dataclasses import dataclass, field
 from types import SimpleNamespace
+from urllib.parse import parse_qsl, unquote, urlsplit
 
 import usb.backend
 import usb.core
 
+from foldfab.devices.usb import KNOWN_CUTTERS, SILHOUETTE_VENDOR
 from foldfab.sim.usblink import Unplugged, UsbLink
 
 PACKET = 64
@@ -196,3 +198,23 @@ class SimulatedUsbBackend(usb.backend.IBackend):
         if intf not in dev.claimed:
             raise usb.core.USBError("Interface not claimed", -5, errno.ENOENT)
         return dev
+
+
+DEFAULT_PRODUCT = 0x1137
+"""The product id of a simulated profile no known cutter names (the Cameo 4's)."""
+
+
+def simulated_cutter(spec: str, address: int = 1) -> SimulatedUsbDevice:
+    """A simulated USB cutter from ``DEVICE?option=value&...`` (a profile name or path and the
+    simulator's options, as in ``sim://``), with the USB ids of the known cutter whose profile
+    it is (:data:`foldfab.devices.usb.KNOWN_CUTTERS`), else a Silhouette's."""
+    from foldfab.devices import load_device
+    from foldfab.sim import create_simulator, parse_options
+
+    parts = urlsplit(f"sim://{spec}")
+    device = load_device(unquote(parts.netloc + parts.path))
+    options = parse_options(parse_qsl(parts.query, keep_blank_values=True), f"simulated USB cutter {spec}")
+    vendor, product = next((ids for ids, cutter in KNOWN_CUTTERS.items() if cutter.profile == device.name),
+                           (SILHOUETTE_VENDOR, DEFAULT_PRODUCT))
+    return SimulatedUsbDevice(UsbLink(create_simulator(device, options)), vendor, product,
+                              serial=f"SIM{address:04d}", address=address)

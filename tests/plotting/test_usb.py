@@ -144,3 +144,35 @@ def test_fault_stops_safely_and_the_resume_completes_the_drawing(fault, monkeypa
         return port, cutter.link.sim, port.close
 
     check_stop(fault, *stop_and_resume(load_device(ROLAND), fabricated(VASE, ROLAND), fault, opened))
+
+
+def test_an_environment_variable_puts_a_simulated_cutter_on_the_bus(monkeypatch, capsys):
+    """FOLDFAB_USB_SIM: a whole plot over usb:// without the cutter, from the command line."""
+    from foldfab.cli import main
+
+    monkeypatch.setattr(protocol_usb, "_SIMULATED", {})
+    monkeypatch.setenv("FOLDFAB_USB_SIM", "roland-gx24?time=instant&sheet=A3")
+    assert main(["plot", str(HEXAGON), "--device", ROLAND, "--port", "usb://silhouette", "--yes"]) == 0
+    (backend,) = protocol_usb._SIMULATED.values()
+    sim = backend.devices[0].link.sim
+    device = load_device(ROLAND)
+    program = fabricate(load_design(HEXAGON), device, job_spec(load_job(HEXAGON))).program
+    assert same_strokes(sim.strokes, interpret(program, device, sim.sheet).strokes)
+    capsys.readouterr()
+    monkeypatch.setenv("FOLDFAB_USB_SIM", "no-such-cutter")
+    assert main(["plot", str(HEXAGON), "--device", ROLAND, "--port", "usb://silhouette", "--yes"]) == 2
+    assert "FOLDFAB_USB_SIM=no-such-cutter: unknown device 'no-such-cutter'" in capsys.readouterr().err
+
+
+def test_a_simulated_cutter_has_its_profiles_usb_ids(monkeypatch):
+    """The ids come from the known cutters' table: a profile named there is found by its id."""
+    from foldfab.devices import usb as known
+    from foldfab.sim.usb import simulated_cutter
+
+    monkeypatch.setitem(known.KNOWN_CUTTERS, (0x0B4D, 0x113A),
+                        known.UsbCutter(0x0B4D, 0x113A, "Silhouette Portrait 3", ROLAND))
+    cutter = simulated_cutter(f"{ROLAND}?time=instant")
+    assert (cutter.vendor, cutter.product) == (0x0B4D, 0x113A)
+    assert (simulated_cutter("grbl").vendor, simulated_cutter("grbl").product) == (0x0B4D, 0x1137)
+    with pytest.raises(FoldfabError, match="simulated USB cutter grbl\\?noise=2"):
+        simulated_cutter("grbl?noise=2")

@@ -81,11 +81,8 @@ class Serial(RawPort):
         super().__init__(*args, **kwargs)
 
     def open(self) -> None:
-        if self.is_open:
-            raise SerialException("Port is already open.")
-        if self._port is None:
-            raise SerialException("Port must be configured before it can be used.")
-        parts = urlsplit(self._port)
+        url = self._opening()
+        parts = urlsplit(url)
         if parts.scheme != "lp" or not parts.path or parts.query:
             raise SerialException(f"{self._port}: expected lp:///dev/usb/lp0 (the device file's path)")
         self.path = unquote(parts.netloc + parts.path)

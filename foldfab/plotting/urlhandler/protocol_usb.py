@@ -18,7 +18,10 @@ Errors say what to do: permissions (the udev rule :data:`UDEV_RULE`), device not
 (the USB devices foldfab sees), no libusb.
 
 pyusb picks libusb itself; :data:`BACKEND` replaces it (tests put a simulated cutter there:
-:class:`foldfab.sim.usb.SimulatedUsbBackend`).
+:class:`foldfab.sim.usb.SimulatedUsbBackend`), and so does the environment variable
+:data:`SIM_VARIABLE`: ``FOLDFAB_USB_SIM="silhouette-cameo-4?time=fast"`` puts a simulated
+cutter for that profile (with its USB ids) on the bus of every ``usb://`` URL of the
+process, to try a whole plot without the cutter.
 """
 
 from __future__ import annotations
@@ -34,6 +37,9 @@ from foldfab.plotting.urlhandler.rawport import SLICE, RawPort, check_bytes
 
 BACKEND = None
 """The pyusb backend to find devices with (None: pyusb's default, libusb)."""
+SIM_VARIABLE = "FOLDFAB_USB_SIM"
+_SIMULATED: dict[str, object] = {}
+"""Simulated buses by the value of :data:`SIM_VARIABLE`: one cutter per process and value."""
 WRITE_STALL = 30.0
 """Seconds a write may make no progress, when the port has no ``write_timeout``."""
 GONE = (errno.ENODEV, errno.EPIPE, errno.EIO, errno.ESHUTDOWN, errno.ENXIO)
@@ -69,10 +75,28 @@ def usb_devices(backend=None) -> list:
     import usb.core
 
     try:
-        return list(usb.core.find(find_all=True, backend=backend or BACKEND))
+        return list(usb.core.find(find_all=True, backend=backend or BACKEND or _simulated_bus()))
     except usb.core.NoBackendError:
         raise SerialException("pyusb finds no libusb: install it (Debian: apt-get install "
                               "libusb-1.0-0)") from None
+
+
+def _simulated_bus():
+    """The simulated bus :data:`SIM_VARIABLE` asks for (None: it is not set)."""
+    import os
+
+    spec = os.environ.get(SIM_VARIABLE, "").strip()
+    if not spec:
+        return None
+    if spec not in _SIMULATED:
+        from foldfab.errors import FoldfabError
+        from foldfab.sim.usb import SimulatedUsbBackend, simulated_cutter
+
+        try:
+            _SIMULATED[spec] = SimulatedUsbBackend([simulated_cutter(spec)])
+        except FoldfabError as exc:
+            raise SerialException(f"{SIM_VARIABLE}={spec}: {exc}") from None
+    return _SIMULATED[spec]
 
 
 def describe(dev) -> str:
@@ -107,12 +131,9 @@ class Serial(RawPort):
         import usb.core
         import usb.util
 
-        if self.is_open:
-            raise SerialException("Port is already open.")
-        if self._port is None:
-            raise SerialException("Port must be configured before it can be used.")
+        url = self._opening()
         try:
-            vendor, product, serial = parse_usb_url(self._port)
+            vendor, product, serial = parse_usb_url(url)
         except ValueError as exc:
             raise SerialException(str(exc)) from None
         found = usb_devices()

@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 import time
 
-from serial.serialutil import SerialBase
+from serial.serialutil import SerialBase, SerialException
 
 SLICE = 0.05
 """Seconds of one wait: how soon a cancel or a status change is seen."""
@@ -32,6 +32,14 @@ class RawPort(SerialBase):
         self._rx = bytearray()
         self._cancel = threading.Event()
         super().__init__(*args, **kwargs)
+
+    def _opening(self) -> str:
+        """The URL to open; raises if the port is open already or has none."""
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        if self._port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        return self._port
 
     def _receive(self, seconds: float) -> None:
         """Add what the device has sent to ``self._rx``, waiting up to ``seconds`` for it."""
