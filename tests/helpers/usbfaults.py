@@ -49,8 +49,12 @@ def stop_and_resume(device, fab, fault: str, opened: Callable[[str, int | None],
             stream(spy, fab.program, device, cancel=cancel, operator=lambda m: True, stall_timeout=1.0)
     finally:
         close()
-    if fault != "stall":  # a hung device is switched off; any other finishes what it holds
-        first.run_until_idle()
+    if fault == "stall":  # the operator clears the jam: the cutter runs on, at once (instant time)
+        from foldfab.sim.clock import Clock
+
+        first.clock = Clock("instant")
+        first.clock.sleep_until(first.t)
+    first.run_until_idle()  # the device finishes whatever it still holds
     stop = stopped.value
     want = strokes_of(fab.program, device)
     index = JobProgress(fab.program, device).strokes_done(stop.acknowledged)
@@ -71,8 +75,9 @@ def check_stop(fault: str, stop, first, second, index, want) -> None:
 
     assert re.search(FAULTS[fault][2], str(stop)), str(stop)
     assert stop.cancelled == (fault == "cancel")
-    if fault == "stall":  # a hung device cannot be told to lift: the message says so
+    if fault == "stall":  # the lift could not be confirmed: the message says so; the PU it sent is held
         assert stop.lifted or "lift it by hand" in str(stop)
+        assert first.machine.stroke is None  # and done once the cutter runs again
     elif fault in ("unplug", "paper-out"):  # the device takes nothing more: the tool may be down
         assert not stop.lifted
     else:  # the tool is up once the device has done what it held
