@@ -117,27 +117,31 @@ def test_writes_wait_while_the_device_is_busy_and_nothing_is_lost():
         close()
 
 
-def test_a_device_that_takes_nothing_is_a_clear_stall():
-    path, link, sim, close = served("time=real&stall=1e6&stall_at=10&buffer=64")
-    port = open_port(f"lp://{path}", load_device(ROLAND), write_timeout=0.5)
-    try:
-        with pytest.raises(OSError, match=r"took no data for 0.5 s after \d+ of \d+ bytes \(busy"):
-            port.write(b"PD1,1;" * (200000 // 6) + b"PU;PU")
-    finally:
+@pytest.fixture
+def hung():
+    """A port to a device that takes 10 bytes and then nothing (real time: it never recovers)."""
+    ports = []
+
+    def open_hung(write_timeout):
+        path, _, _, close = served("time=real&stall=1e6&stall_at=10&buffer=64")
+        ports.append((open_port(f"lp://{path}", load_device(ROLAND), write_timeout=write_timeout), close))
+        return ports[-1][0]
+    yield open_hung
+    for port, close in ports:
         port.close()
         close()
 
 
-def test_cancel_write_stops_a_blocked_write():
-    path, link, sim, close = served("time=real&stall=1e6&stall_at=10&buffer=64")
-    port = open_port(f"lp://{path}", load_device(ROLAND), write_timeout=60)
-    try:
-        timer = threading.Timer(0.3, port.cancel_write)
-        timer.start()
-        assert port.write(b"PD1,1;" * 100000) < 600000
-    finally:
-        port.close()
-        close()
+def test_a_device_that_takes_nothing_is_a_clear_stall(hung):
+    port = hung(0.5)
+    with pytest.raises(OSError, match=r"took no data for 0.5 s after \d+ of \d+ bytes \(busy"):
+        port.write(b"PD1,1;" * (200000 // 6) + b"PU;PU")
+
+
+def test_cancel_write_stops_a_blocked_write(hung):
+    port = hung(60)
+    threading.Timer(0.3, port.cancel_write).start()
+    assert port.write(b"PD1,1;" * 100000) < 600000
 
 
 @pytest.mark.parametrize("fault", list(FAULTS))
