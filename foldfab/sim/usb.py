@@ -144,7 +144,7 @@ class SimulatedUsbBackend(usb.backend.IBackend):
         if bmRequestType & 0x80 and bRequest == 6 and wValue >> 8 == 3:
             index = wValue & 0xFF
             text = ["", dev.manufacturer, dev.product_name, dev.serial][index] if index < 4 else ""
-            body = LANGUAGE.to_bytes(2, "little") if index == 0 else text.encode("utf-16-le")
+            body = LANGUAGE.to_bytes(2, "little") if index == 0 else text.encode("utf-16-le")[:252]
             answer = bytes([2 + len(body), 3]) + body
             count = min(len(answer), len(data))
             data[:count] = array.array("B", answer[:count])

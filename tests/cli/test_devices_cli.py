@@ -70,3 +70,21 @@ def test_ports_without_libusb_says_what_to_install(monkeypatch, capsys):
     assert main(["ports"]) == 0
     assert "note: USB cutters: pyusb finds no libusb: install it (Debian: apt-get install libusb-1.0-0)" \
         in capsys.readouterr().out
+
+
+def test_a_hostile_serial_number_is_printed_tame(monkeypatch, capsys):
+    from foldfab.devices import load_device
+    from foldfab.sim import create_simulator
+    from foldfab.sim.usblink import UsbLink
+
+    serial = "A\x1b[2J\nB&x=1?/" + "9" * 500
+    sim = create_simulator(load_device("roland-gx24"))
+    monkeypatch.setattr(protocol_usb, "BACKEND", SimulatedUsbBackend(
+        [SimulatedUsbDevice(UsbLink(sim), 0x0B4D, 0x1137, serial)]))
+    assert main(["ports"]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("usb"))
+    port = line.split()[1]
+    assert port == "usb://0b4d:1137?serial=A[2JBx=1" + "9" * 56
+    from foldfab.plotting.transport import open_port
+
+    open_port(port, load_device("roland-gx24")).close()  # the printed URL finds it

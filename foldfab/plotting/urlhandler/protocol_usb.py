@@ -42,6 +42,8 @@ _SIMULATED: dict[str, object] = {}
 """Simulated buses by the value of :data:`SIM_VARIABLE`: one cutter per process and value."""
 WRITE_STALL = 30.0
 """Seconds a write may make no progress, when the port has no ``write_timeout``."""
+SERIAL_LIMIT = 64
+"""Characters of a device's serial number kept."""
 GONE = (errno.ENODEV, errno.EPIPE, errno.EIO, errno.ESHUTDOWN, errno.ENXIO)
 LIBUSB_GONE = (-4, -9, -1)  # LIBUSB_ERROR_NO_DEVICE, _PIPE, _IO
 UDEV_RULE = ('SUBSYSTEM=="usb", ATTR{idVendor}=="0b4d", MODE="0660", GROUP="plugdev", TAG+="uaccess"')
@@ -112,9 +114,12 @@ def _serial(dev) -> str | None:
     import usb.util
 
     try:
-        return usb.util.get_string(dev, dev.iSerialNumber) if dev.iSerialNumber else None
+        text = usb.util.get_string(dev, dev.iSerialNumber) if dev.iSerialNumber else None
     except (usb.core.USBError, ValueError, NotImplementedError):
         return None  # no permission to ask, or no strings
+    # the device's own text: printable characters only, bounded (it is printed and put in URLs)
+    text = "".join(c for c in text or "" if c.isprintable() and c not in "&?#/")[:SERIAL_LIMIT]
+    return text or None
 
 
 class Serial(RawPort):
