@@ -14,6 +14,11 @@ Run by hand:  python benchmarks/bench_stream.py   (about three minutes)
    of the job was still to come (``starved``) as a share of its plot time.
 3. Host CPU while the plotter works: ``foldfab sim NAME --pty`` at real speed in another
    process, foldfab streaming for a fixed time; process CPU over wall time.
+4. The USB transports: the Roland GX-24 (HP-GL, no handshake) with motion made instant,
+   through ``lp://`` (a simulated printer device on a pty, served by a thread) and ``usb://``
+   (a simulated cutter behind a pyusb backend), both ``time=real``, beside the same job over
+   serial at 9600 baud; then with the profile's own motion (``time=instant``), its starvation.
+   ``python benchmarks/bench_stream.py --usb`` runs this part only.
 """
 
 from __future__ import annotations
@@ -135,7 +140,48 @@ def host_cpu(seconds: float = 10.0) -> None:
         print(f"{name:<18}{device.buffer.flow_control:<14}{share:>11.2%}")
 
 
+def usb_transports() -> None:
+    from foldfab.plotting.urlhandler import protocol_usb
+    from foldfab.sim import create_simulator, parse_options
+    from foldfab.sim.printer import printer_thread
+    from foldfab.sim.usb import SimulatedUsbBackend, SimulatedUsbDevice
+    from foldfab.sim.usblink import UsbLink
+
+    def opened(transport, device, time_mode):
+        sim = create_simulator(device, parse_options([("time", time_mode), ("sheet", "A3")]))
+        if transport == "lp://":
+            path, _, stop, thread = printer_thread(sim)
+            return open_port(f"lp://{path}", device), sim, lambda: (stop.set(), thread.join())
+        if transport == "usb://":
+            protocol_usb.BACKEND = SimulatedUsbBackend([SimulatedUsbDevice(UsbLink(sim), 0x0B4D, 0x1137)])
+            return open_port("usb://0b4d:1137", device), sim, lambda: None
+        port = open_port(f"sim://?time={time_mode}&sheet=A3", device, baudrate=BAUD)
+        return port, port.simulator, lambda: None
+
+    print("\n4. USB transports: roland-gx24 (HP-GL, flow none), vase-svg job")
+    print(f"{'transport':<16}{'motion':<10}{'bytes':>7}{'plot time s':>12}{'bytes/s':>10}{'starved':>9}")
+    with tempfile.TemporaryDirectory() as folder:
+        for motion, device, time_mode in (("instant", load_device(instant_motion("roland-gx24", Path(folder))), "real"),
+                                          ("profile", load_device("roland-gx24"), "instant")):
+            program = program_for(device)
+            for transport in ("lp://", "usb://", f"serial {BAUD}"):
+                port, sim, close = opened(transport, device, time_mode)
+                try:
+                    stream(port, program, device)
+                finally:
+                    port.close()
+                    close()
+                stats = sim.stats
+                assert stats.bytes_lost == 0
+                print(f"{transport:<16}{motion:<10}{len(program.text):>7}{stats.plot_time:>12.2f}"
+                      f"{len(program.text) / stats.plot_time:>10.0f}{stats.starved_time / stats.plot_time:>9.2%}")
+
+
 if __name__ == "__main__":
+    if sys.argv[1:] == ["--usb"]:
+        usb_transports()
+        sys.exit(0)
     link_bound()
     motion_bound()
     host_cpu()
+    usb_transports()

@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from foldfab.cli import design, plot, queue, sim, studio
+from foldfab.cli import design, devices, plot, queue, sim, studio
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -29,6 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     design.add_commands(sub)
+    devices.add_commands(sub)
     plot.add_commands(sub)
     queue.add_commands(sub)
     sim.add_commands(sub)

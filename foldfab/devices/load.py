@@ -350,3 +350,9 @@ def _parse_ebb(root: _Reader, protocol: str, buffer: BufferSettings, motion: Mot
                          "lower pen_down or raise pen_up")
     table.done()
     return settings
+
+
+def profile_origin(device: DeviceProfile) -> str:
+    """``built-in`` or ``user``: where ``device``'s profile comes from (``foldfab devices``)."""
+    builtin = _builtin_dir().resolve()
+    return "built-in" if builtin in Path(device.source).resolve().parents else "user"

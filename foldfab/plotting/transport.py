@@ -1,7 +1,9 @@
 """Opening a plotter's port: device paths and pyserial URLs, with the profile's line settings.
 
 :func:`open_port` opens anything pyserial opens (``/dev/ttyUSB0``, ``socket://host:23``,
-``rfc2217://...``, ``spy://...``) and foldfab's own ``sim://`` simulators, applies the
+``rfc2217://...``, ``spy://...``) and foldfab's own handlers: ``sim://`` simulators,
+``lp://`` USB printer-class devices (a path that is not a terminal, such as
+``/dev/usb/lp0``, opens as ``lp://``) and ``usb://`` cutters on raw USB; it applies the
 device profile's ``[serial]`` settings and turns every failure into one
 :class:`~foldfab.errors.FoldfabError` naming the port and what to do.
 
@@ -47,6 +49,7 @@ def open_port(url: str, device: DeviceProfile | None = None, *, baudrate: int | 
     import serial
 
     register_handlers()
+    url = printer_url(url)
     _import_own_handler(url)
     if device is None:
         device = _simulated_profile(url)
@@ -68,6 +71,33 @@ def open_port(url: str, device: DeviceProfile | None = None, *, baudrate: int | 
     except (serial.SerialException, OSError, ValueError) as exc:
         raise FoldfabError(f"cannot open port {url}: {exc}; {_advice(url, str(exc))}") from None
     return port
+
+
+def printer_url(url: str) -> str:
+    """``lp://PATH`` for a path to a file that is not a terminal (a USB printer-class device
+    such as ``/dev/usb/lp0``: pyserial cannot configure it); anything else unchanged."""
+    import os
+    import stat
+
+    if "://" in url:
+        return url
+    try:
+        mode = os.stat(url).st_mode
+    except OSError:
+        return url  # pyserial's error names it
+    if stat.S_ISCHR(mode):
+        try:
+            fd = os.open(url, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        except OSError:
+            return url
+        try:
+            if os.isatty(fd):
+                return url
+        finally:
+            os.close(fd)
+    elif stat.S_ISDIR(mode):
+        return url
+    return "lp://" + os.path.abspath(url)
 
 
 def _simulated_profile(url: str) -> DeviceProfile | None:
@@ -106,6 +136,11 @@ def _advice(url: str, message: str) -> str:
     if "protocol" in message and "not known" in message:
         return ("use a device path (/dev/ttyUSB0, COM3) or a URL pyserial knows: socket://, "
                 "rfc2217://, spy://, loop://, or foldfab's sim://DEVICE")
+    if url.startswith("usb:"):
+        return "see foldfab ports for the USB cutters foldfab sees"
+    if url.startswith("lp:"):
+        return ("check that the cutter is connected and switched on (ls /dev/usb/ /dev/usblp*, "
+                "foldfab ports) and that you may use it (group lp: sudo usermod -aG lp $USER)")
     if url.startswith("sim:"):
         return "fix the URL: sim://DEVICE?option=value&... (see foldfab.sim.options)"
     if "://" in url:
