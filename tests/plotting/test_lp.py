@@ -22,7 +22,7 @@ from foldfab.sim import create_simulator, parse_options
 from foldfab.sim.printer import printer_thread
 from helpers import HEXAGON
 from helpers.resumes import VASE
-from helpers.streams import fabricated, same_strokes, strokes_of
+from helpers.streams import fabricated, same_strokes
 from helpers.usbfaults import FAULTS, check_stop, stop_and_resume
 
 ROLAND = "roland-gx24"
