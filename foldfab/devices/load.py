@@ -21,6 +21,7 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
     sheet = "A4"                    # A4 | A3 | Letter, optionally + " landscape", or [w, h]
     port = "/dev/ttyUSB0"           # optional: serial port or pyserial URL
     tool_changer = false            # optional: true if the device changes pens by itself
+    firmware_blade_offset = false   # optional: true if the cutter compensates its drag knife itself
 
     [serial]   baudrate (required), bytesize = 8, parity = "none", stopbits = 1,
                xonxoff = false, rtscts = false, dsrdtr = false
@@ -37,7 +38,10 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
                z_speed (mm/s, required with a Z height)
     [layers.valley], [layers.mountain], [layers.cut] (required; other names allowed):
                pen (required), force, speed (default motion.draw_speed), passes = 1,
-               pen_down (gcode only, required: Z height or servo command, same kind as pen_up)
+               pen_down (gcode only, required: Z height or servo command, same kind as pen_up);
+               a drag knife on a layer that cuts (never valley or mountain, which score):
+               blade_offset (mm, 0..5, default 0: none), swivel_angle (degrees, 0..179,
+               default 5), overcut (mm, 0..50, default 0) -- see foldfab.fabrication.blade
 
 The profile's data model is :mod:`foldfab.devices.profile`, its value checks
 :mod:`foldfab.devices.checks`.
@@ -51,6 +55,7 @@ from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 
+from foldfab.devices.blade import BLADE_KEYS, profile_blade
 from foldfab.devices.checks import (_MISSING, _PEN_POSITION, _TOOL_KEYS, README_HINT, _boolean, _check_tool, _choice,
                                     _choice_number, _integer, _number, _pair, _pen_position, _range, _Reader, _text,
                                     parse_sheet)
@@ -120,7 +125,7 @@ def _corner_name(ex, ey) -> str:
 
 _ROOT_KEYS = ("name", "model", "protocol", "dialect", "units_per_mm", "x_axis", "y_axis", "origin", "origin_offset",
               "plottable_area", "sheet", "port", "tool_changer", "serial", "buffer", "motion", "limits", "gcode",
-              "layers")
+              "layers", "firmware_blade_offset")
 """Every key at the top of a device profile."""
 
 
@@ -236,15 +241,21 @@ def _parse(root: _Reader) -> DeviceProfile:
         buffer=buffer, motion=motion, limits=limits, gcode=gcode, layers=MappingProxyType({}),
         source=root.file,
     )
+    firmware = root.take("firmware_blade_offset", "true or false", _boolean, False)
     layers_reader = root.table("layers")
-    layers = {}
+    layers, blades = {}, {}
     for layer in REQUIRED_LAYERS:
         if layer not in layers_reader.data:
             raise FoldfabError(f"{root.file}: missing table '[layers.{layer}]'; add it, {README_HINT}")
     for layer in list(layers_reader.data):
-        layers[layer] = _parse_layer(profile, layers_reader.table(layer, keys=(*_TOOL_KEYS, "pen_down")))
+        reader = layers_reader.table(layer, keys=(*_TOOL_KEYS, "pen_down", *BLADE_KEYS))
+        blade = profile_blade(reader, layer, firmware)
+        if blade is not None:
+            blades[layer] = blade
+        layers[layer] = _parse_layer(profile, reader)
     root.done()
-    return replace(profile, layers=MappingProxyType(layers))
+    return replace(profile, layers=MappingProxyType(layers), firmware_blade_offset=firmware,
+                   blades=MappingProxyType(blades))
 
 
 def _parse_layer(profile: DeviceProfile, reader: _Reader) -> LayerDefaults:
