@@ -81,18 +81,24 @@ def centre_path(line: np.ndarray, offset: float, swivel_angle: float, resolution
     return _distinct(np.array(path))
 
 
+DRIFT_SHARE = 4
+"""A swivel arc may move the tip by at most the resolution over this: the drift of swivels at
+corners closer together than the blade offset adds up before straight moves take it out."""
+
+
 def swivel_steps(offset: float, turn: float, resolution: float) -> int:
     """Chords of a swivel arc of radius ``offset`` turning ``turn`` radians, so that the knife
-    strays from the arc, and its tip from the corner, by at most half of ``resolution``.
+    strays from the arc, and its tip from the corner, by at most ``resolution / DRIFT_SHARE``.
 
-    The arc's chords cut inside it by ``offset * (1 - cos(step / 2))``; on each chord the axis
-    comes nearer the corner and the dragged tip moves, and the tip's drift over the whole arc
-    is about ``offset * |turn| * step**2 / 12`` (the drag-knife model of the tests, measured:
-    tests/fabrication/test_blade.py)."""
-    tolerance = resolution / 2
+    Each chord cuts inside the arc by its sagitta ``offset * (1 - cos(step / 2))``, and on it
+    the axis comes nearer the corner and pushes the dragged tip back by about as much; over
+    the arc the tip's drift adds up to about ``offset * |turn| * step**2 / 12``.  Both are
+    bounded by ``offset * step**2 * (1 + |turn|) / 8`` (measured on the drag-knife model of
+    the tests: tests/fabrication/test_blade.py)."""
+    tolerance = resolution / DRIFT_SHARE
     sweep = abs(turn)
     by_chord = 2 * math.acos(max(1 - tolerance / offset, 0.0))
-    by_drift = math.sqrt(12 * tolerance / (offset * sweep))
+    by_drift = math.sqrt(8 * tolerance / (offset * (1 + sweep)))
     return max(1, math.ceil(sweep / min(by_chord, by_drift, math.pi / 2)))
 
 
