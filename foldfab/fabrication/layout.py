@@ -29,14 +29,20 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
     reach = "the device's plottable area"
     pts = design.crease_pattern.vertices
     bounds = (complex(*pts.min(axis=0)), complex(*pts.max(axis=0)))
+    margin = spec.margin
     try:
         if spec.strategy == "two-sided":
             area = both_sides(area, sheet, spec.flip_edge)
             reach += f" on both sides of the sheet (flipped {FLIPS[spec.flip_edge]})"
+        swing = max((blade.offset for blade in layer_blades(design, device, spec)[0].values() if blade), default=0.0)
+        if swing:  # the knife's axis goes up to its blade offset beyond the lines it cuts
+            area = (area[0] + swing, area[1] + swing, area[2] - swing, area[3] - swing)
+            margin = max(margin, swing)
+            reach += f" less the {swing:g} mm blade offset the knife swings out by"
         scale = spec.scale
         if scale == "fit":
-            scale = largest_scale(bounds, usable(sheet, area, spec.margin, reach), spec.rotate)
-        placement = fit(bounds, sheet, area, spec.margin, scale, spec.rotate, reach)
+            scale = largest_scale(bounds, usable(sheet, area, margin, reach), spec.rotate)
+        placement = fit(bounds, sheet, area, margin, scale, spec.rotate, reach)
     except FoldfabError as exc:
         raise FoldfabError(f"{design.job.path}: {device.name}: {exc}") from None
     width, height = placement.size

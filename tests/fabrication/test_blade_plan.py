@@ -147,3 +147,14 @@ def test_the_preview_shows_the_swivel_arcs_at_the_outline_corners():
         assert on_arc.sum() >= 3, corner
         spread = np.degrees(np.ptp(np.unwrap(np.angle(drawn[on_arc] - corner))))
         assert spread >= 0.9 * min(turns[np.abs(loop - corner).argmin()], 360 - spread)
+
+
+def test_a_design_fitted_to_the_sheet_leaves_room_for_the_knife_to_swing():
+    knife = load_device("grbl-dragknife")
+    design = load_design(HEXAGON)
+    spec = replace(job_spec(design.job), margin=0.0, scale="fit")
+    fab = fabricate(design, knife, spec)   # the writer refuses any point outside the sheet or reach
+    axis = np.concatenate([as_complex(np.asarray(line)) for line in fab.plan.document.layers[3]])
+    width, height = fab.plan.sheet
+    edge = min(axis.real.min(), axis.imag.min(), width - axis.real.max(), height - axis.imag.max())
+    assert 0 <= edge <= 0.01   # fitted up to the sheet's edge, the knife's swing included
