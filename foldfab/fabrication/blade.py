@@ -37,6 +37,12 @@ def compensate(lines, blade: Blade, resolution: float) -> list[np.ndarray]:
     return out
 
 
+def blade_text(layer: str, blade: Blade) -> str:
+    """How a layer's lines are compensated, as the report and the preview say it."""
+    return (f"{layer}: drag knife compensated for a {blade.offset:g} mm blade offset, swivels at corners over "
+            f"{blade.swivel_angle:g} degrees, {blade.overcut:g} mm overcut")
+
+
 def is_closed(line: np.ndarray) -> bool:
     """A loop: at least three distinct points, ending where it starts."""
     return len(line) > 3 and abs(line[-1] - line[0]) <= SAME_POINT
