@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-import math
+import shutil
+import subprocess
 import xml.etree.ElementTree as ET
 from dataclasses import replace
 from pathlib import Path
@@ -127,6 +128,12 @@ def test_the_tip_of_the_emitted_program_follows_every_outline_corner(tmp_path, p
         theirs = [s.points for s in unblade.strokes if s.layer == layer]
         assert len(ours) == len(theirs) and all(np.array_equal(a, b) for a, b in zip(ours, theirs))
     assert not np.array_equal(cuts[0], [s.points for s in unblade.strokes if s.layer == "cut"][0])
+    if protocol == "hpgl":   # an independent reader takes the swivels (.ci/run installs hp2xx)
+        assert shutil.which("hp2xx"), "hp2xx is missing: apt-get install hp2xx"
+        (tmp_path / "cut.hpgl").write_text(fab.program.text)
+        done = subprocess.run(["hp2xx", "-q", "-m", "svg", "-f", str(tmp_path / "cut.svg"), str(tmp_path / "cut.hpgl")],
+                              capture_output=True, text=True, timeout=60)
+        assert (done.returncode, done.stdout, done.stderr) == (0, "", "")
 
 
 def test_the_preview_shows_the_swivel_arcs_at_the_outline_corners():
