@@ -18,18 +18,20 @@ import math
 import numpy as np
 
 from foldfab.devices import Blade
+from foldfab.fabrication.optimize import _closed  # the loops the optimizer may start anywhere
 
 SAME_POINT = 1e-9
 """mm: points closer than this are one point (a zero-length segment has no direction)."""
 
 
 def compensate(lines, blade: Blade, resolution: float) -> list[np.ndarray]:
-    """The knife-axis paths of polylines ``lines`` (each overcut if closed, then offset): see
+    """The knife-axis paths of polylines ``lines`` (each overcut if closed within ``resolution``,
+    then offset): see
     :func:`overcut` and :func:`centre_path`.  A zero offset and overcut return ``lines`` as they are."""
     out = []
     for line in lines:
         line = np.asarray(line, dtype=complex)
-        if blade.overcut > 0 and is_closed(line):
+        if blade.overcut > 0 and _closed(line, resolution):
             line = overcut(line, blade.overcut)
         if blade.offset > 0:
             line = centre_path(line, blade.offset, blade.swivel_angle, resolution)
@@ -41,11 +43,6 @@ def blade_text(layer: str, blade: Blade) -> str:
     """How a layer's lines are compensated, as the report and the preview say it."""
     return (f"{layer}: drag knife compensated for a {blade.offset:g} mm blade offset, swivels at corners over "
             f"{blade.swivel_angle:g} degrees, {blade.overcut:g} mm overcut")
-
-
-def is_closed(line: np.ndarray) -> bool:
-    """A loop: at least three distinct points, ending where it starts."""
-    return len(line) > 3 and abs(line[-1] - line[0]) <= SAME_POINT
 
 
 def overcut(loop: np.ndarray, length: float) -> np.ndarray:

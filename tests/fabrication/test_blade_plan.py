@@ -85,8 +85,8 @@ def test_job_layers_override_the_blade_and_scored_layers_refuse_it():
     assert all(step.blade is None for step in plan.steps if isinstance(step, Pass) and step.name != "cut")
     design = load_design(HEXAGON)
     spec = parse_fabrication({"layers": {"valley": {"blade_offset": 0.25}}}, "job.toml")
-    with pytest.raises(FoldfabError, match=r"hexagon-fig8a.toml: \[fabrication.layers.valley\]: blade_offset = 0.25 on a "
-                                           "scored layer"):
+    scored = r"hexagon-fig8a.toml: \[fabrication.layers.valley\]: blade_offset = 0.25 on a scored layer"
+    with pytest.raises(FoldfabError, match=scored):
         fabricate(design, knife, spec)
     # perforated creases are cut: their dashes take the cut's blade, and may set their own
     spec = parse_fabrication({"strategy": "perforate", "layers": {"valley": {"blade_offset": 0.3}}}, "job.toml")
