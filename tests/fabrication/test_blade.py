@@ -53,9 +53,12 @@ def test_the_dragged_tip_follows_the_line_and_reaches_every_corner(data, blade, 
     line = data.draw(polylines(shortest=blade.offset))
     (axis,) = compensate([line], blade, resolution)
     assert_tip_follows(axis, blade.offset, line, resolution)
-    # on every straight move of the axis the tip runs the offset behind it, on the line
-    assert abs(axis[0] - blade.offset * (line[1] - line[0]) / abs(line[1] - line[0]) - line[0]) < 1e-9
-    assert abs(axis[-1] - blade.offset * (line[-1] - line[-2]) / abs(line[-1] - line[-2]) - line[-1]) < 1e-9
+    # each segment is one straight move of the axis, the offset ahead of it along its direction:
+    # the axis traced back by the offset along its motion is the segment itself
+    direction = np.diff(line) / np.abs(np.diff(line))
+    for start, end in zip(line[:-1] + blade.offset * direction, line[1:] + blade.offset * direction):
+        starts = np.flatnonzero(np.abs(axis[:-1] - start) < 1e-9)
+        assert len(starts) and abs(axis[starts[0] + 1] - end) < 1e-9
 
 
 @settings(max_examples=100, deadline=None)
