@@ -35,6 +35,15 @@ class Fabrication:
         """The scale the design is drawn at and whether it is turned (:func:`placement_text`)."""
         return placement_text(self.placement.scale, self.spec.scale == "fit", self.placement.rotated)
 
+    @property
+    def blade_notes(self) -> list[str]:
+        """One line per pass whose lines are moved for a drag knife (:func:`blade_text`)."""
+        from foldfab.fabrication.blade import blade_text
+        from foldfab.fabrication.plan import Pass
+
+        return [blade_text(step.name, step.blade) for step in self.plan.steps
+                if isinstance(step, Pass) and step.blade is not None]
+
     @cached_property
     def travel_after(self) -> dict:
         """Pen-up travel of the plan (:func:`foldfab.fabrication.optimize.travel`)."""

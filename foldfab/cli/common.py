@@ -70,6 +70,7 @@ def fabrication_report(fab, device) -> dict:
         "scale_fitted": fab.spec.scale == "fit",
         "rotated": fab.placement.rotated,
         "warnings": list(fab.warnings),
+        "blades": fab.blade_notes,
         "layers": {name: {"drawn_mm": round(t.drawn_length, 1), "pen_lifts": t.pen_lifts,
                           "travel_mm": round(t.travel_length, 1), "time_s": round(t.time, 1)}
                    for name, t in times.layers.items()},
@@ -90,6 +91,7 @@ def format_report(info: dict) -> str:
 
     lines = [f"device       {info['device']}  strategy {info['strategy']}  sheet {info['sheet_mm'][0]:g} x {info['sheet_mm'][1]:g} mm",
              f"placement    {placement_text(info['scale'], info['scale_fitted'], info['rotated'])}"]
+    lines += [f"blade        {note}" for note in info.get("blades", ())]
     for name, layer in info["layers"].items():
         lines.append(f"{name:<12} {layer['drawn_mm']:>9.1f} mm drawn {layer['pen_lifts']:>6} pen lifts "
                      f"{layer['travel_mm']:>9.1f} mm travel {layer['time_s']:>8.1f} s")
@@ -111,7 +113,7 @@ def _write_preview(fab, device, output: Path) -> None:
     from foldfab.programs.preview import render_preview
 
     write_text(output, render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan,
-                                      notes=[fab.placement_summary]))
+                                      notes=[fab.placement_summary, *fab.blade_notes]))
 
 
 def _add_scale_arg(parser: argparse.ArgumentParser) -> None:

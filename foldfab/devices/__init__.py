@@ -9,6 +9,7 @@ from foldfab.devices.checks import parse_sheet
 from foldfab.devices.load import list_devices, load_device
 from foldfab.devices.profile import (FLOW_CONTROLS, GCODE_DECIMALS, BufferSettings, DeviceProfile, Frame, Motion,
                                      Tool)
+from foldfab.devices.profile import Blade
 
 __all__ = ["FLOW_CONTROLS", "GCODE_DECIMALS", "BufferSettings", "DeviceProfile", "Frame", "Motion", "Tool",
-           "list_devices", "load_device", "parse_sheet"]
+           "list_devices", "load_device", "parse_sheet", "Blade"]

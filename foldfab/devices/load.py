@@ -22,6 +22,7 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
     sheet = "A4"                    # A4 | A3 | Letter, optionally + " landscape", or [w, h]
     port = "/dev/ttyUSB0"           # optional: serial port or pyserial URL
     tool_changer = false            # optional: true if the device changes pens by itself
+    firmware_blade_offset = false   # optional: true if the cutter compensates its drag knife itself
 
     [serial]   baudrate (required), bytesize = 8, parity = "none", stopbits = 1,
                xonxoff = false, rtscts = false, dsrdtr = false
@@ -46,6 +47,9 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
                pen_down (gcode only, required: Z height or servo command, same kind as pen_up);
                a laser's layers: power (share of $30's full power, 0 < power <= 1, required),
                speed, passes, pen (default 1), and no pen_down
+               a drag knife on a layer that cuts (never valley or mountain, which score):
+               blade_offset (mm, 0..5, default 0: none), swivel_angle (degrees, 0..179,
+               default 5), overcut (mm, 0..50, default 0) -- see foldfab.fabrication.blade
 
 The profile's data model is :mod:`foldfab.devices.profile`, its value checks
 :mod:`foldfab.devices.checks`.
@@ -59,6 +63,7 @@ from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 
+from foldfab.devices.blade import BLADE_KEYS, profile_blade
 from foldfab.devices.checks import (_MISSING, _PEN_POSITION, _TOOL_KEYS, README_HINT, _boolean, _check_tool, _choice,
                                     _choice_number, _integer, _laser_power, _number, _pair, _pen_position, _range,
                                     _Reader, _text, parse_sheet)
@@ -128,7 +133,7 @@ def _corner_name(ex, ey) -> str:
 
 _ROOT_KEYS = ("name", "model", "protocol", "dialect", "units_per_mm", "x_axis", "y_axis", "origin", "origin_offset",
               "plottable_area", "sheet", "port", "tool_changer", "serial", "buffer", "motion", "limits", "gcode",
-              "layers", "ebb")
+              "layers", "ebb", "firmware_blade_offset")
 """Every key at the top of a device profile."""
 
 
@@ -252,15 +257,21 @@ def _parse(root: _Reader) -> DeviceProfile:
         buffer=buffer, motion=motion, limits=limits, gcode=gcode, layers=MappingProxyType({}),
         source=root.file, ebb=_parse_ebb(root, protocol, buffer, motion, units),
     )
+    firmware = root.take("firmware_blade_offset", "true or false", _boolean, False)
     layers_reader = root.table("layers")
-    layers = {}
+    layers, blades = {}, {}
     for layer in REQUIRED_LAYERS:
         if layer not in layers_reader.data:
             raise FoldfabError(f"{root.file}: missing table '[layers.{layer}]'; add it, {README_HINT}")
     for layer in list(layers_reader.data):
-        layers[layer] = _parse_layer(profile, layers_reader.table(layer, keys=(*_TOOL_KEYS, "pen_down", "power")))
+        reader = layers_reader.table(layer, keys=(*_TOOL_KEYS, "pen_down", "power", *BLADE_KEYS))
+        blade = profile_blade(reader, layer, firmware)
+        if blade is not None:
+            blades[layer] = blade
+        layers[layer] = _parse_layer(profile, reader)
     root.done()
-    return replace(profile, layers=MappingProxyType(layers))
+    return replace(profile, layers=MappingProxyType(layers), firmware_blade_offset=firmware,
+                   blades=MappingProxyType(blades))
 
 
 def _parse_layer(profile: DeviceProfile, reader: _Reader) -> LayerDefaults:

@@ -7,7 +7,8 @@ Imported by the command line's fast path: no numpy or vpype at module level (the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Mapping
 
 from foldfab.devices.checks import _LASER_KEYS, _TOOL_KEYS, _laser_power, _Reader, _check_tool
@@ -68,6 +69,23 @@ class Tool:
     cut at the cut's depth); None: the depth of the pass's own layer."""
     power: float | None = None
     """A laser's power, as a share of its full power (GRBL's ``$30``); None for other tools."""
+
+
+SWIVEL_ANGLE = 5.0
+"""Degrees: a drag knife swivels round corners turning more than this (Inkcut's blade-offset
+filter's default cutoff); gentler corners are joined straight."""
+
+
+@dataclass(frozen=True)
+class Blade:
+    """A drag knife's compensation for one layer (:mod:`foldfab.fabrication.blade`)."""
+
+    offset: float = 0.0
+    """mm: how far the blade's tip trails the knife's axis (``blade_offset``); 0: none."""
+    swivel_angle: float = SWIVEL_ANGLE
+    """Degrees: corners turning more than this get a swivel arc."""
+    overcut: float = 0.0
+    """mm: closed loops are cut this far past their start."""
 
 
 @dataclass(frozen=True)
@@ -254,6 +272,11 @@ class DeviceProfile:
     source: str
     ebb: EbbSettings | None = None
     """EiBotBoard settings (``protocol = "ebb"`` only)."""
+    firmware_blade_offset: bool = False
+    """The device compensates its drag knife's offset itself (a cutter's own offset setting):
+    foldfab moves no path and ignores a job's blade settings."""
+    blades: Mapping[str, Blade] = field(default_factory=lambda: MappingProxyType({}))
+    """The drag-knife compensation of each profile layer that sets one."""
 
     @property
     def resolution(self) -> float:

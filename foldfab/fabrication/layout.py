@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from foldfab.design import Design
-from foldfab.devices import DeviceProfile, Tool
+from foldfab.devices import Blade, DeviceProfile, Tool
 from foldfab.errors import FoldfabError
 from foldfab.fabrication.plan import Pass, Pause, PlotPlan
 from foldfab.fabrication.spec import FLIPS, LAYERS, FabricationSpec, flip_message, job_spec
@@ -29,14 +29,20 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
     reach = "the device's plottable area"
     pts = design.crease_pattern.vertices
     bounds = (complex(*pts.min(axis=0)), complex(*pts.max(axis=0)))
+    margin = spec.margin
     try:
         if spec.strategy == "two-sided":
             area = both_sides(area, sheet, spec.flip_edge)
             reach += f" on both sides of the sheet (flipped {FLIPS[spec.flip_edge]})"
+        swing = max((blade.offset for blade in layer_blades(design, device, spec)[0].values() if blade), default=0.0)
+        if swing:  # the knife's axis goes up to its blade offset beyond the lines it cuts
+            area = (area[0] + swing, area[1] + swing, area[2] - swing, area[3] - swing)
+            margin = max(margin, swing)
+            reach += f" less the {swing:g} mm blade offset the knife swings out by"
         scale = spec.scale
         if scale == "fit":
-            scale = largest_scale(bounds, usable(sheet, area, spec.margin, reach), spec.rotate)
-        placement = fit(bounds, sheet, area, spec.margin, scale, spec.rotate, reach)
+            scale = largest_scale(bounds, usable(sheet, area, margin, reach), spec.rotate)
+        placement = fit(bounds, sheet, area, margin, scale, spec.rotate, reach)
     except FoldfabError as exc:
         raise FoldfabError(f"{design.job.path}: {device.name}: {exc}") from None
     width, height = placement.size
@@ -103,15 +109,51 @@ def layer_tools(design: Design, device: DeviceProfile,
     Perforation dashes are cuts: with the perforate strategy the valley and mountain passes
     start from the profile's cut settings, and ``[fabrication.layers.valley]`` etc. override them.
     """
+    from foldfab.devices.blade import without_blade_keys
+
     source = f"{design.job.path}: [fabrication.layers]"
     tools, warnings = {}, []
     for name in LAYERS:
-        overrides, ignored = device.supported(spec.layers.get(name, {}),
+        overrides, ignored = device.supported(without_blade_keys(spec.layers.get(name, {})),
                                               f"{design.job.path}: [fabrication.layers.{name}]")
         warnings += ignored
         like = "cut" if spec.strategy == "perforate" else name
         tools[name] = device.tool_for(name, overrides, source, like=like)
-    return tools, warnings
+    return tools, warnings + layer_blades(design, device, spec)[1]
+
+
+def layer_blades(design: Design, device: DeviceProfile,
+                 spec: FabricationSpec) -> tuple[dict[str, Blade | None], list[str]]:
+    """The drag-knife compensation of each layer (None: none), and a warning line for each job
+    blade setting ignored because the device's firmware compensates.
+
+    Only layers the blade cuts are compensated: the cut, and with the perforate strategy the
+    creases' dashes (from the profile's ``[layers.cut]``); a blade setting on a scored layer is
+    an error.  ``[fabrication.layers.NAME]`` overrides the profile's setting."""
+    from foldfab.devices.blade import blade_keys, take_blade
+    from foldfab.devices.checks import _Reader
+
+    blades: dict[str, Blade | None] = {}
+    warnings = []
+    for name in LAYERS:
+        where = f"{design.job.path}: [fabrication.layers.{name}]"
+        given = blade_keys(spec.layers.get(name, {}))
+        cuts = name == "cut" or spec.strategy == "perforate"
+        if given and not cuts:
+            key = next(iter(given))
+            raise FoldfabError(f"{where}: {key} = {given[key]!r} on a scored layer: the blade presses the {name} "
+                               "creases, it does not cut them; remove it (blade settings apply to cut layers: "
+                               "the cut, and the creases' dashes with the perforate strategy)")
+        if device.firmware_blade_offset:
+            warnings += [f"{where}.{key} = {value!r} ignored: {device.name} compensates its blade itself "
+                         "(firmware_blade_offset = true)" for key, value in given.items()]
+            blades[name] = None
+            continue
+        base = device.blades.get("cut" if cuts else name)
+        reader = _Reader(dict(given), f"{design.job.path}: [fabrication.layers]", f"layers.{name}.")
+        blade = take_blade(reader, base or Blade()) if given else base
+        blades[name] = blade if cuts and blade is not None and (blade.offset > 0 or blade.overcut > 0) else None
+    return blades, warnings
 
 
 def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placement, sheet,
@@ -123,6 +165,7 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
     from foldfab.fabrication import scoring
     from foldfab.fabrication.placement import mirror
 
+    blades, _ = layer_blades(design, device, spec)
     cp = design.crease_pattern
     placed = placement.apply(scoring.vertex_points(cp))
     lines = {"valley": scoring.crease_lines(cp, "V", placed), "mountain": scoring.crease_lines(cp, "M", placed),
@@ -143,7 +186,7 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
         doc.add(lines[name], layer_id)
         doc.layers[layer_id].set_property("vp_name", name)
         doc.layers[layer_id].set_property("vp_color", vp.Color(colour))
-        steps.append(Pass(layer_id, name, tools[name]))
+        steps.append(Pass(layer_id, name, tools[name], blades[name]))
     return PlotPlan(doc, steps, sheet)
 
 
@@ -173,31 +216,38 @@ def _segments(lines) -> np.ndarray:
 
 def finish_plan(layout: PlotPlan, device: DeviceProfile, spec: FabricationSpec,
                 optimize: str | None = None) -> PlotPlan:
-    """``layout`` optimized (by ``optimize``, default the spec's method) and, for the perforate
-    strategy, its creases cut into dashes.  ``layout`` itself is left as it is."""
+    """``layout`` optimized (by ``optimize``, default the spec's method); for the perforate
+    strategy, its creases cut into dashes; then the lines of each pass with a blade moved to
+    the drag knife's axis path (:mod:`foldfab.fabrication.blade`: last, since it follows each
+    line's final direction).  ``layout`` itself is left as it is."""
     import vpype as vp
 
     from foldfab.fabrication import scoring
+    from foldfab.fabrication.blade import compensate
     from foldfab.fabrication.optimize import optimize_plan
 
     park = park_position(device, layout.sheet)
     perforated = frozenset(("valley", "mountain")) if spec.strategy == "perforate" else frozenset()
     plan = optimize_plan(layout, optimize or spec.optimize, device.resolution, park,
                          keep_vertices=perforated, tool_changer=device.tool_changer)
-    if not perforated:
+    if not perforated and not any(isinstance(step, Pass) and step.blade for step in plan.steps):
         return plan
     doc = plan.document.clone()  # metadata only: the layers are added below
     for step in plan.steps:
         if not isinstance(step, Pass):
             continue
         layer = plan.document.layers[step.layer_id]
+        lines = None
         if step.name in perforated:
             # Dashes follow the optimized creases in order; every crease vertex gets its clearance.
-            dashes = scoring.perforate(_segments(layer), spec.perforation[step.name], spec.clearance)
-            dashed = vp.LineCollection(list(dashes))
+            lines = list(scoring.perforate(_segments(layer), spec.perforation[step.name], spec.clearance))
+        if step.blade is not None:
+            lines = compensate(layer.lines if lines is None else lines, step.blade, device.resolution)
+        if lines is not None:
+            changed = vp.LineCollection(lines)
             for key, value in layer.metadata.items():
-                dashed.set_property(key, value)
-            layer = dashed
+                changed.set_property(key, value)
+            layer = changed
         doc.add(layer, step.layer_id, with_metadata=True)
     return PlotPlan(doc, list(plan.steps), plan.sheet)
 

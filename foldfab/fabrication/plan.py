@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Union
 
-from foldfab.devices import Tool
+from foldfab.devices import Blade, Tool
 
 if TYPE_CHECKING:
     import vpype
@@ -31,6 +31,9 @@ class Pass:
     name: str
     """"valley", "mountain", "cut" or any other layer name."""
     tool: Tool
+    blade: Blade | None = None
+    """The drag-knife compensation :func:`foldfab.fabrication.layout.finish_plan` applies to the
+    layer's lines once their order and direction are final; None: the lines as they are."""
 
 
 @dataclass(frozen=True)
