@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import re
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -15,6 +16,7 @@ from foldfab.programs.gcode import write_gcode
 from foldfab.devices import Tool
 from foldfab.fabrication.plan import Pass, Pause, PlotPlan
 from foldfab.programs.program import fmt_number
+from helpers import ROOT
 from helpers.plans import assert_round_trip, make_document, random_plans, sample_plan, servo_device
 
 ALLOWED = {"G0", "G1", "G4", "G17", "G20", "G21", "G90", "G91", "G92", "M0", "M2", "M3", "M5"}
@@ -159,3 +161,41 @@ def test_numbers_are_written_shortest(value, decimals):
     assert float(text) == float(f"{value:.{decimals}f}")
     assert text != "-0" and not text.endswith(".")
     assert "." not in text or (not text.endswith("0") and len(text.split(".")[1]) <= decimals)
+
+
+def pygcode_cuts(text: str, pen_up: float) -> list[list[tuple[float, float]]]:
+    """The XY paths the tool cuts as pygcode's machine (an independent G-code reader, after
+    LinuxCNC; it raises on a word or G/M code it does not know) reads the program: runs of G1
+    moves in the plane while Z is below the pen-up height."""
+    from pygcode import Line, Machine
+
+    machine, cuts, cutting = Machine(), [], False
+    for raw in text.splitlines():
+        start = (machine.pos.X, machine.pos.Y)
+        machine.process_block(Line(raw).block)
+        end = (machine.pos.X, machine.pos.Y)
+        on = end != start and machine.pos.Z < pen_up
+        if on and cutting:
+            cuts[-1].append(end)
+        elif on:
+            cuts.append([start, end])
+        cutting = on if end != start else cutting and machine.pos.Z < pen_up
+    return cuts
+
+
+@pytest.mark.parametrize("name", ["grbl", "grbl-dragknife"])
+@pytest.mark.parametrize("job", sorted((ROOT / "jobs").glob("*.toml")), ids=lambda p: p.stem)
+def test_pygcode_reads_every_example_program_and_cuts_what_we_read(name, job):
+    """The hidden-reader principle for G-code tools: pygcode accepts every program, and the
+    strokes it cuts are the ones foldfab's reader finds (a drag knife's swivels included)."""
+    from foldfab.programs.interpret import interpret
+    from helpers.streams import fabricated
+
+    device = load_device(name)
+    fab = fabricated(str(job), name, "force")
+    ours = interpret(fab.program, device, fab.plan.sheet).strokes
+    theirs = pygcode_cuts(fab.program.text, device.gcode.pen_up)
+    frame = device.frame(fab.plan.sheet)
+    assert len(theirs) == len(ours) > 0
+    for points, stroke in zip(theirs, ours):
+        assert np.allclose(points, frame.to_device(stroke.points), atol=1e-9, rtol=0)
