@@ -13,6 +13,7 @@ Pure geometry: no I/O.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,7 +100,7 @@ def split_pattern(grid: Reflection, flat_angle: float, glue_tab: float, columns:
     """The design of ``grid`` cut after mirror planes ``columns`` and line elements ``rows`` into
     pieces, numbered row by row from the bottom left; tabs ``glue_tab`` mm wide (or
     :func:`_tab_width`).  The seam tab of a closed design stays on the last piece of each row."""
-    check_cuts(grid, list(columns), list(rows), "split", "split_height")
+    check_cuts(grid, list(columns), list(rows), "[fabrication].split", "[fabrication].split_height")
     x, points, seam = tabbed_grid(grid, glue_tab)
     y, tol = grid.arc, grid.tolerance
     J, C = x.shape
@@ -184,6 +185,68 @@ def split_pattern(grid: Reflection, flat_angle: float, glue_tab: float, columns:
         marks = match_marks(joins, f"{number} OF {count}") if count > 1 else ()
         out.append(Piece(number, count, (ja, jb), (ka, kb), shifted, origin, tuple(joins), tuple(marks), cut_tabs))
     return out
+
+
+def auto_cuts(grid: Reflection, glue_tab: float, fits: Callable[[float, float], bool]) -> tuple[list[int], list[int]]:
+    """The cuts (mirror planes, line elements) that split the design into few pieces for which
+    ``fits(width, height)`` (mm, tabs included) holds, as even as possible: the fewest rows
+    that fit, with the tallest as low as can be, then the fewest columns, with the widest piece
+    as narrow as can be.  No cuts when the whole design fits; a design with a panel that fits
+    no sheet is an error."""
+    x, _, _ = tabbed_grid(grid, glue_tab)
+    y, J, K = grid.arc, len(grid.arc), grid.x.shape[1] - 1
+    tab = glue_tab if glue_tab > 0 else DEFAULT_TAB   # the most a split's tab may add
+
+    def width(ja: int, jb: int, ka: int, kb: int) -> float:
+        far = x[ja:jb + 1, x.shape[1] - 1 if kb == K else kb]
+        return float(far.max() - x[ja:jb + 1, ka].min()) + (tab if kb < K else 0.0)
+
+    def height(ja: int, jb: int) -> float:
+        return float(y[jb] - y[ja]) + (tab if jb < J - 1 else 0.0)
+
+    rows = _balanced(J - 1, lambda a, b, cap: height(a, b) <= cap and fits(0.0, height(a, b)), height)
+    if rows is not None:
+        blocks = list(zip([0, *rows], [*rows, J - 1]))
+        columns = _balanced(K, lambda a, b, cap: all(w <= cap and fits(w, height(ja, jb))
+                                                     for ja, jb in blocks for w in [width(ja, jb, a, b)]),
+                            lambda a, b: max(width(ja, jb, a, b) for ja, jb in blocks))
+        if columns is not None:
+            return columns, rows
+    raise DesignError("[fabrication].split: even one panel of the crease pattern does not fit the sheet at this "
+                      "scale; use a smaller scale, a larger sheet or a smaller margin")
+
+
+def _greedy(n: int, ok: Callable[[int, int], bool]) -> list[int] | None:
+    """Cuts in 1..n-1 taking each piece [a, b] as far as ``ok(a, b)`` allows (sizes grow with b,
+    so it fails for every b past its first failure); None if a single step fails."""
+    cuts, a = [], 0
+    while True:
+        b = a
+        while b < n and ok(a, b + 1):
+            b += 1
+        if b == a:
+            return None
+        if b == n:
+            return cuts
+        cuts.append(b)
+        a = b
+
+
+def _balanced(n: int, ok: Callable[[int, int, float], bool], size: Callable[[int, int], float]) -> list[int] | None:
+    """:func:`_greedy` into the fewest pieces, under the lowest cap on ``size`` that keeps that
+    count (bisection): the pieces as even as the creases allow."""
+    fewest = _greedy(n, lambda a, b: ok(a, b, np.inf))
+    if fewest is None:
+        return None
+    low, high = 0.0, size(0, n)
+    for _ in range(40):
+        cap = (low + high) / 2
+        cuts = _greedy(n, lambda a, b: ok(a, b, cap))
+        if cuts is not None and len(cuts) <= len(fewest):
+            high = cap
+        else:
+            low = cap
+    return _greedy(n, lambda a, b: ok(a, b, high))
 
 
 def match_marks(joins: list[Join], label: str) -> list[np.ndarray]:

@@ -11,7 +11,7 @@ from foldfab.errors import DesignError
 from foldfab.geometry import templates
 from foldfab.geometry.crease_pattern import build_crease_pattern
 from foldfab.geometry.reflection import reflect
-from foldfab.geometry.split import letters, split_pattern
+from foldfab.geometry.split import auto_cuts, letters, split_pattern
 from foldfab.geometry.stroke_font import GLYPHS, text_strokes
 from helpers.pieces import assert_pieces_rebuild
 
@@ -97,7 +97,7 @@ def test_pieces_need_no_more_than_their_cuts():
 
 
 @pytest.mark.parametrize("columns, rows, message", [
-    ([0], [], "split: 0 is not a cut"), ([9], [], "split: 9 is not a cut"), ([2, 2], [], "names a cut twice"),
+    ([0], [], r"\[fabrication\].split: 0 is not a cut"), ([9], [], "split: 9 is not a cut"), ([2, 2], [], "names a cut twice"),
     ([], [3], "split_height: 3 is not a cut")])
 def test_cuts_off_the_pattern_are_refused(columns, rows, message):
     grid, _ = _hexagon()
@@ -118,3 +118,39 @@ def test_letters_and_stroke_font():
     assert points[:, 1].min() >= 0 and points[:, 1].max() == pytest.approx(6.0)
     assert all(len(s) >= 2 for s in strokes)
     assert set("ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789 ") <= set(GLYPHS)
+
+
+def _long_strip():
+    """An open zig-zag strip 600 mm long and 60 mm tall: 12 mirrors, 50 mm apart."""
+    pts = np.array([[50.0 * i, 10.0 * (i % 2)] for i in range(13)])
+    grid = reflect(np.array([[0, 0], [0, 20], [0, 40], [0, 60]], float), pts)
+    return grid, build_crease_pattern(grid, 1.0)
+
+
+def test_auto_split_takes_the_fewest_even_pieces_that_fit():
+    grid, cp = _long_strip()
+    length = cp.sheet_size[0]
+    room = (250.0, 190.0)
+    fits = lambda w, h: w <= room[0] and h <= room[1]   # noqa: E731
+    columns, rows = auto_cuts(grid, 0.0, fits)
+    assert rows == []
+    pieces = split_pattern(grid, 1.0, 0.0, columns, rows)
+    assert len(pieces) == int(np.ceil(length / room[0]))
+    sizes = [p.crease_pattern.sheet_size for p in pieces]
+    assert all(fits(*s) for s in sizes)
+    widths = [w for w, _ in sizes]
+    assert max(widths) - min(widths) <= 2 * np.diff(grid.x[0]).max()   # even, to a panel
+    assert_pieces_rebuild(cp, pieces)
+
+
+def test_auto_split_cuts_across_the_height_when_the_design_is_taller_than_the_sheet():
+    grid, cp = _long_strip()
+    columns, rows = auto_cuts(grid, 0.0, lambda w, h: w <= 700 and h <= 45)
+    assert columns == [] and rows == [1]   # 20 + 8 mm tab below, 40 above: [2] would make 48 + 20
+    assert auto_cuts(grid, 0.0, lambda w, h: True) == ([], [])
+
+
+def test_auto_split_refuses_a_panel_larger_than_the_sheet():
+    grid, _ = _long_strip()
+    with pytest.raises(DesignError, match=r"\[fabrication\].split: even one panel"):
+        auto_cuts(grid, 0.0, lambda w, h: w <= 30)
