@@ -187,12 +187,13 @@ def split_pattern(grid: Reflection, flat_angle: float, glue_tab: float, columns:
     return out
 
 
-def auto_cuts(grid: Reflection, glue_tab: float, fits: Callable[[float, float], bool]) -> tuple[list[int], list[int]]:
+def auto_cuts(grid: Reflection, glue_tab: float, fits: Callable[[float, float], bool],
+              rows: list[int] | None = None) -> tuple[list[int], list[int]]:
     """The cuts (mirror planes, line elements) that split the design into few pieces for which
     ``fits(width, height)`` (mm, tabs included) holds, as even as possible: the fewest rows
     that fit, with the tallest as low as can be, then the fewest columns, with the widest piece
-    as narrow as can be.  No cuts when the whole design fits; a design with a panel that fits
-    no sheet is an error."""
+    as narrow as can be.  ``rows``: line-element cuts already chosen.  No cuts when the whole
+    design fits; a design with a panel that fits no sheet is an error."""
     x, _, _ = tabbed_grid(grid, glue_tab)
     y, J, K = grid.arc, len(grid.arc), grid.x.shape[1] - 1
     tab = glue_tab if glue_tab > 0 else DEFAULT_TAB   # the most a split's tab may add
@@ -204,7 +205,8 @@ def auto_cuts(grid: Reflection, glue_tab: float, fits: Callable[[float, float], 
     def height(ja: int, jb: int) -> float:
         return float(y[jb] - y[ja]) + (tab if jb < J - 1 else 0.0)
 
-    rows = _balanced(J - 1, lambda a, b, cap: height(a, b) <= cap and fits(0.0, height(a, b)), height)
+    if rows is None:
+        rows = _balanced(J - 1, lambda a, b, cap: height(a, b) <= cap and fits(0.0, height(a, b)), height)
     if rows is not None:
         blocks = list(zip([0, *rows], [*rows, J - 1]))
         columns = _balanced(K, lambda a, b, cap: all(w <= cap and fits(w, height(ja, jb))
@@ -251,31 +253,53 @@ def _balanced(n: int, ok: Callable[[int, int, float], bool], size: Callable[[int
 
 def match_marks(joins: list[Join], label: str) -> list[np.ndarray]:
     """Strokes writing each join's letter in the strip along its cut line (on the tab, or where
-    the tab will cover the edge), and the piece's ``label`` after the letter of its first join.
-
-    Text runs along the cut, upright towards the strip; it sits where the cut line is straightest
-    for longest, so it stays inside the strip however the cut line slants."""
+    the tab will cover the edge), and the piece's ``label`` after the letter of its first join."""
     strokes: list[np.ndarray] = []
     for index, join in enumerate(joins):
-        if join.width <= 0:
+        text = join.letter + (f" {label}" if index == 0 else "")
+        glyphs = text_strokes(text, 1.0)
+        ratio = max(float(g[:, 0].max()) for g in glyphs)   # text length per mm of height
+        place = _text_place(join, ratio)
+        if place is None:
             continue
-        up = np.eye(2)[join.across]
-        along = np.array([0.0, -1.0]) if join.across == 0 else np.array([1.0, 0.0])
-        height = min(MARK_HEIGHT, 0.5 * join.width)
-        e, a = join.line @ along, join.line @ up
-        span, rise = np.abs(np.diff(e)), np.abs(np.diff(a))
-        # the text may reach (width - height) / 2 across from its centre before it leaves the strip
-        room = np.where(span > 0, np.minimum(span, (join.width - height) / np.maximum(rise / np.maximum(span, 1e-300),
-                                                                                      1e-300)), 0.0)
-        best = int(np.argmax(room))
-        if room[best] <= 0:
-            continue
-        glyphs = text_strokes(join.letter + (f" {label}" if index == 0 else ""), height)
-        extent = max(float(g[:, 0].max()) for g in glyphs)
-        factor = min(1.0, 0.9 * room[best] / extent)
-        glyphs, extent, height = [g * factor for g in glyphs], extent * factor, height * factor
-        centre = (join.line[best] + join.line[best + 1]) / 2 + up * join.width / 2
-        start = centre - along * extent / 2 - up * height / 2
-        for g in glyphs:
-            strokes.append(start + np.outer(g[:, 0], along) + np.outer(g[:, 1], up))
+        start, along, up, height = place
+        strokes += [start + np.outer(g[:, 0] * height, along) + np.outer(g[:, 1] * height, up) for g in glyphs]
     return strokes
+
+
+def _text_place(join: Join, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float] | None:
+    """Where text ``ratio`` times as long as high fits largest inside the strip ``join.width``
+    wide beside the cut line: (start, direction, up, height), or None.
+
+    Each segment of the cut line offers two places, centred on it: text straight across the
+    strip's axis, or text along the segment.  A point ``mid + σ·d + τ·n`` of text along
+    direction ``d`` (up ``n``) is ``a + (L/2 + σ + τα)·d + (w/2 + τβ)·across`` in the strip's own
+    coordinates, with ``n = α·d + β·across``: it stays inside while ``|τβ| <= w/2`` and
+    ``|σ| + |τα| <= L/2``."""
+    across = np.eye(2)[join.across]
+    best = None
+    for a, b in zip(join.line[:-1], join.line[1:]):
+        seg = b - a
+        length = float(np.linalg.norm(seg))
+        if length <= 0:
+            continue
+        straight = np.array([0.0, -1.0]) if join.across == 0 else np.array([1.0, 0.0])
+        for d in (straight, seg / length):
+            n = np.array([-d[1], d[0]])
+            if np.dot(n, across) < 0:
+                d, n = -d, -n
+            # n = alpha d + beta across, in the strip's (segment, across) coordinates
+            basis = np.column_stack([seg / length, across])
+            if abs(np.linalg.det(basis)) < 1e-12:
+                continue
+            alpha_d, beta = np.linalg.solve(basis, n)
+            sigma_d, sigma_a = np.linalg.solve(basis, d)   # d itself, in the same coordinates
+            # the half-extents: text of height h and length r*h, centred at the strip's middle
+            # needs h/2*|beta| + r*h/2*|sigma_a| <= w/2 and h/2*|alpha_d| + r*h/2*|sigma_d| <= L/2
+            cap_w = join.width / max(abs(beta) + ratio * abs(sigma_a), 1e-300)
+            cap_l = length / max(abs(alpha_d) + ratio * abs(sigma_d), 1e-300)
+            height = 0.8 * min(MARK_HEIGHT / 0.8, cap_w, cap_l)
+            if best is None or height > best[3]:
+                centre = (a + b) / 2 + across * join.width / 2
+                best = (centre - d * ratio * height / 2 - n * height / 2, d, n, height)
+    return best if best is not None and best[3] > 0 else None
