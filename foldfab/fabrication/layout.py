@@ -167,7 +167,7 @@ def add_marks(doc, steps: list, marks: list[np.ndarray], device: DeviceProfile) 
     doc.add(marks, layer_id)
     doc.layers[layer_id].set_property("vp_name", "marks")
     doc.layers[layer_id].set_property("vp_color", vp.Color(colour))
-    steps.append(Pass(layer_id, "marks", device.tool_for("valley")))
+    steps.append(Pass(layer_id, "marks", device.tool_for("marks", like="valley")))
 
 
 def check_strokes(design: Design, spec: FabricationSpec, lines: dict[str, list[np.ndarray]]) -> None:
