@@ -79,6 +79,8 @@ def format_summary(info: dict) -> str:
     w, h = info["sheet_mm"]
     lines.append(f"sheet        {w:.1f} x {h:.1f} mm")
     lines.append(f"penetrations {info['penetrations']}")
+    if info.get("pieces"):
+        lines.append(f"pieces       {info['pieces']} ([fabrication].split), each with its own files")
     for path in info.get("written", []):
         lines.append(f"wrote        {path}")
     return "\n".join(lines)

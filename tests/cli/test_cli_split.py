@@ -22,6 +22,7 @@ def test_design_writes_the_whole_design_and_one_file_per_piece(tmp_path, capsys)
     assert code == 0, err
     info = json.loads(out)
     assert info["pieces"] == 3
+    assert "pieces       3" in run(capsys, "design", LANTERN)[1]
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == sorted(["l.svg", "l.fold", "l.cp", "l.stl"] + [f"l-{n}.{ext}" for n in (1, 2, 3)
                                                                   for ext in ("svg", "fold", "cp")])
@@ -82,3 +83,7 @@ def test_the_queue_takes_a_split_job_as_one_job_of_several_sheets(tmp_path, caps
     [job] = store.jobs()
     assert [p.message for p in store.snapshot(job.id).program.pauses][-2:] == [
         "Load sheet 2 of 3 (piece 2), then continue.", "Load sheet 3 of 3 (piece 3), then continue."]
+    code, out, err = run(capsys, "queue", "add", HEXAGON, "--device", "hp7475a", "--port", "sim://?time=instant",
+                         "--queue", queue, "--scale", "2.5", "--split", "auto")
+    assert code == 0, err
+    assert any(p.message.startswith("Load sheet 2 of ") for p in store.snapshot(2).program.pauses)
