@@ -160,9 +160,11 @@ def split_pattern(grid: Reflection, flat_angle: float, glue_tab: float, columns:
             cp = grid_pattern(xs, ys, ps, flat_angle, ids, tab_row | tab_col, keep, normals[ids[..., 0], ids[..., 1]])
             origin = cp.vertices.min(axis=0)
             joins = []
-            def line(j0, j1, k0, k1):
-                return np.column_stack([x[j0:j1 + 1, k0:k1 + 1].ravel(),
-                                        np.broadcast_to(y[j0:j1 + 1, None], (j1 + 1 - j0, k1 + 1 - k0)).ravel()]) - origin
+
+            def line(j0: int, j1: int, k0: int, k1: int) -> np.ndarray:
+                """A cut line in piece coordinates: line elements j0..j1 at planes k0..k1."""
+                block = np.broadcast_to(y[j0:j1 + 1, None], (j1 + 1 - j0, k1 + 1 - k0))
+                return np.column_stack([x[j0:j1 + 1, k0:k1 + 1].ravel(), block.ravel()]) - origin
             if (r, c) in vletter:
                 joins.append(Join(vletter[r, c], True, line(ja, jb, kb, kb), 0, widths.get("v", glue_tab)))
             if c > 0 or (seam and ncol > 1):
