@@ -92,7 +92,10 @@ def fabricate_sheets(design: Design, device: DeviceProfile, spec: FabricationSpe
     pieces = design_pieces(design, spec, sheet, area, reach)
     if not pieces:
         return [fabricate(design, device, spec)]
-    sheets = [fabricate(piece_design(design, piece), device, spec) for piece in pieces]
+    parts = [piece_design(design, piece) for piece in pieces]
+    if spec.scale == "fit":   # one scale for all the pieces, or they would not glue together
+        spec = replace(spec, scale=min(place(part, device, spec)[0].scale for part in parts))
+    sheets = [fabricate(part, device, spec) for part in parts]
     return [_one_program(sheets, device, spec)] if one_program else sheets
 
 

@@ -10,9 +10,9 @@ import pytest
 from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
-from foldfab.fabricate import fabricate_sheets
+from foldfab.fabricate import fabricate, fabricate_sheets
 from foldfab.fabrication.layout import reachable
-from foldfab.fabrication.pieces import design_pieces
+from foldfab.fabrication.pieces import design_pieces, piece_design
 from foldfab.fabrication.plan import Pass, Pause
 from foldfab.fabrication.spec import MARKS, job_spec, parse_fabrication
 from foldfab.formats import fold
@@ -112,3 +112,13 @@ def test_split_keys_parse():
     assert spec.split == (4, 8) and spec.split_height == (2,)
     assert parse_fabrication({"split": "auto"}, "job.toml").split == "auto"
     assert load_job(LANTERN).fabrication["split"] == "auto"
+
+
+def test_pieces_fitted_to_the_sheet_share_one_scale(lantern):
+    device = load_device("hp7475a")
+    spec = replace(job_spec(lantern.job), split=(3, 7), scale="fit")
+    sheets = fabricate_sheets(lantern, device, spec)
+    assert len(sheets) == 3 and len({fab.placement.scale for fab in sheets}) == 1
+    alone = [fabricate(piece_design(lantern, p), device, spec).placement.scale
+             for p in design_pieces(lantern, spec)]
+    assert sheets[0].placement.scale == pytest.approx(min(alone)) and max(alone) > 1.1 * min(alone)
