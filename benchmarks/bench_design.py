@@ -20,6 +20,7 @@ from foldfab.geometry.crease_pattern import build_crease_pattern
 from foldfab.formats.mesh import to_trimesh
 from foldfab.geometry.penetration import find_penetrations
 from foldfab.geometry.reflection import reflect
+from foldfab.geometry.split import auto_cuts, split_pattern
 
 from warm_bytecode import cache_foldfab_bytecode
 
@@ -58,6 +59,13 @@ def main() -> None:
     profile, trajectory = wavy_design(101, 1000)
     cp = build(profile, trajectory)
     rows.append((f"penetration check, {len(cp.faces):,} faces", best_of(lambda: find_penetrations(cp), 3)))
+    grid = reflect(profile, trajectory)   # 251 x 60 mm, on pieces of at most 60 x 40 mm
+    fits = lambda w, h: w <= 60 and h <= 40   # noqa: E731
+    cuts = auto_cuts(grid, 0.0, fits)
+    count = (len(cuts[0]) + 1) * (len(cuts[1]) + 1)
+    rows.append((f"split auto, {len(cp.faces):,} faces (choose the cuts)", best_of(lambda: auto_cuts(grid, 0.0, fits), 3)))
+    rows.append((f"split into {count} pieces, {len(cp.faces):,} faces (pieces and their marks)",
+                 best_of(lambda: split_pattern(grid, 1.0, 0.0, *cuts), 3)))
 
     with tempfile.TemporaryDirectory() as tmp:
         job = Path(tmp) / "big.toml"

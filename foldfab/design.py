@@ -27,6 +27,7 @@ class Design:
     crease_pattern: CreasePattern
     penetrations: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
     warnings: tuple[str, ...] = ()
+    marks: tuple[np.ndarray, ...] = ()   # strokes (N, 2) on the crease pattern: a split piece's match marks
 
 
 def _svg_points(source: SvgSource, where: str) -> np.ndarray:

@@ -78,3 +78,59 @@ def fabricate(design: Design, device: DeviceProfile, spec: FabricationSpec | Non
     plan = finish_plan(layout, device, spec)
     return Fabrication(spec, placement, plan, write_program(plan, device), design, device, layout,
                        tuple(warnings))
+
+
+def fabricate_sheets(design: Design, device: DeviceProfile, spec: FabricationSpec | None = None,
+                     scale: float | str | None = None, split: str | None = None,
+                     one_program: bool = False) -> list[Fabrication]:
+    """:func:`fabricate` for every sheet: one fabrication per piece of a split design
+    (:func:`~foldfab.fabrication.pieces.design_pieces`), the design whole when it is not split.
+    ``split`` ("auto", the command line's ``--split``) replaces the job's ``[fabrication].split``;
+    ``one_program`` gives one fabrication drawing every sheet in turn, with a pause before each
+    new sheet ("Load sheet 2 of 3")."""
+    from foldfab.fabrication.layout import reachable
+    from foldfab.fabrication.pieces import design_pieces, piece_design
+
+    if spec is None:
+        spec = job_spec(design.job)
+    if scale is not None:
+        spec = replace(spec, scale=scale)
+    if split is not None:
+        spec = replace(spec, split=split)
+    sheet, area, reach = reachable(design, device, spec)
+    pieces = design_pieces(design, spec, sheet, area, reach)
+    if not pieces:
+        return [fabricate(design, device, spec)]
+    parts = [piece_design(design, piece) for piece in pieces]
+    if spec.scale == "fit":   # one scale for all the pieces, or they would not glue together
+        spec = replace(spec, scale=min(place(part, device, spec)[0].scale for part in parts))
+    sheets = [fabricate(part, device, spec) for part in parts]
+    return [_one_program(sheets, device, spec)] if one_program else sheets
+
+
+def _one_program(sheets: list[Fabrication], device: DeviceProfile, spec: FabricationSpec) -> Fabrication:
+    """The sheets' layouts as one plan, the operator asked to load each new sheet, then
+    optimized and written as one program (sheet by sheet: a pause is never crossed)."""
+    import vpype as vp
+
+    from foldfab.fabrication.pieces import sheet_message
+    from foldfab.fabrication.plan import Pass, Pause
+    from foldfab.programs.languages import write_program
+
+    doc = vp.Document()
+    doc.page_size = sheets[0].layout.sheet
+    steps: list = []
+    for number, fab in enumerate(sheets, 1):
+        if number > 1:
+            steps.append(Pause(sheet_message(number, len(sheets))))
+        base = 10 * number   # each sheet's layers get ids of their own
+        for step in fab.layout.steps:
+            if isinstance(step, Pass):
+                doc.add(fab.layout.document.layers[step.layer_id], base + step.layer_id, with_metadata=True)
+                step = Pass(base + step.layer_id, step.name, step.tool)
+            steps.append(step)
+    layout = PlotPlan(doc, steps, sheets[0].layout.sheet)
+    plan = finish_plan(layout, device, spec)
+    first = sheets[0]
+    return Fabrication(spec, first.placement, plan, write_program(plan, device), first.design, device, layout,
+                       first.warnings)

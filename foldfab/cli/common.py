@@ -23,16 +23,43 @@ def _design(args: argparse.Namespace):
 
 
 def _fabricate(args: argparse.Namespace):
-    """Design, device profile and fabrication of the command's job."""
+    """Design, device profile and fabrication of the command's job: a split design's sheets
+    in one program, with a pause to load each new sheet."""
+    design, device, [fab] = _fabricate_sheets(args, one_program=True)
+    return design, device, fab
+
+
+def _fabricate_sheets(args: argparse.Namespace, one_program: bool = False):
+    """Design, device profile and the fabrication of each sheet of the command's job (one,
+    unless it is split; ``one_program``: one for all of them)."""
     from foldfab.devices import load_device
-    from foldfab.fabricate import fabricate
+    from foldfab.fabricate import fabricate_sheets
 
     device = load_device(args.device)
     design = _design(args)
-    fab = fabricate(design, device, scale=getattr(args, "scale", None))
-    for warning in (*design.warnings, *fab.warnings):
+    fabs = fabricate_sheets(design, device, scale=getattr(args, "scale", None), split=getattr(args, "split", None),
+                            one_program=one_program)
+    for warning in (*design.warnings, *fabs[0].warnings):
         print(f"foldfab: warning: {warning}", file=sys.stderr)
-    return design, device, fab
+    return design, device, fabs
+
+
+def sheet_paths(path: Path, count: int) -> list[Path]:
+    """Where the files of ``count`` sheets or pieces go: ``path`` itself for one, else
+    ``name-1.ext``, ``name-2.ext``, ... beside it."""
+    if count == 1:
+        return [path]
+    return [path.with_name(f"{path.stem}-{n}{path.suffix}") for n in range(1, count + 1)]
+
+
+def _add_split_args(parser: argparse.ArgumentParser, one_program: bool = True) -> None:
+    parser.add_argument("--split", choices=["auto"],
+                        help="cut a design larger than the sheet into the fewest pieces that fit, joined by glue tabs "
+                             "(instead of the job's [fabrication].split)")
+    if one_program:
+        parser.add_argument("--one-program", action="store_true",
+                            help="a split design's sheets in one program, pausing to load each new sheet "
+                                 "(default: one file per sheet, name-1, name-2, ...)")
 
 
 def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> None:

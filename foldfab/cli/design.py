@@ -8,8 +8,9 @@ import json
 import sys
 from pathlib import Path
 
-from foldfab.cli.common import (_add_max_faces, _add_scale_arg, _check_folder, _check_output, _design, _fabricate,
-                                _write_preview, fabrication_report, format_report)
+from foldfab.cli.common import (_add_max_faces, _add_scale_arg, _add_split_args, _check_folder, _check_output,
+                                _design, _fabricate_sheets, _write_preview, fabrication_report, format_report,
+                                sheet_paths)
 
 
 def _design_outputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
@@ -28,19 +29,25 @@ def _design_outputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
 def cmd_design(args: argparse.Namespace) -> int:
     """Build a design; print its summary and write the requested files."""
     from foldfab.design import summary
+    from foldfab.fabrication.pieces import piece_design
     from foldfab.formats.output import write_design_files
 
     outputs = _design_outputs(args)
     design = _design(args)
+    pieces = _pieces(design)   # each piece as files of its own beside the whole design's (not the mesh: one model)
+    parts = [(piece_design(design, p), [(kind, sheet_paths(path, len(pieces))[p.number - 1])
+                                        for kind, path in outputs if kind != "mesh"]) for p in pieces]
+    files = [*outputs, *(file for _, part_files in parts for file in part_files)]
     try:
-        write_design_files(design, outputs)
+        write_design_files(design, outputs, parts)
     except OSError as exc:  # e.g. the path is a folder or not writable: one line, and every file as it was
         from foldfab.errors import FoldfabError
 
-        kind, path = next((k, p) for k, p in outputs if str(p) == exc.filename)
+        kind, path = next(((k, p) for k, p in files if str(p) == exc.filename), files[0])
         raise FoldfabError(f"--{kind} {path}: cannot write: {exc.strerror or exc}") from None
     info = summary(design)
-    info["written"] = [str(p) for _, p in outputs]
+    info["pieces"] = len(pieces)
+    info["written"] = [str(p) for _, p in files]
     for warning in design.warnings:
         print(f"foldfab: warning: {warning}", file=sys.stderr)
     if args.json:
@@ -48,6 +55,15 @@ def cmd_design(args: argparse.Namespace) -> int:
     else:
         print(format_summary(info))
     return 0
+
+
+def _pieces(design) -> list:
+    """The pieces of a split design ([fabrication].split), fitted to [fabrication].sheet for "auto"."""
+    from foldfab.fabrication.pieces import design_pieces
+    from foldfab.fabrication.spec import job_spec
+
+    spec = job_spec(design.job)
+    return design_pieces(design, spec, spec.sheet)
 
 
 def format_summary(info: dict) -> str:
@@ -63,6 +79,8 @@ def format_summary(info: dict) -> str:
     w, h = info["sheet_mm"]
     lines.append(f"sheet        {w:.1f} x {h:.1f} mm")
     lines.append(f"penetrations {info['penetrations']}")
+    if info.get("pieces"):
+        lines.append(f"pieces       {info['pieces']} ([fabrication].split), each with its own files")
     for path in info.get("written", []):
         lines.append(f"wrote        {path}")
     return "\n".join(lines)
@@ -73,29 +91,43 @@ PROGRAM_SUFFIXES = {"hpgl": (".hpgl", ".plt", ".hpg"), "gcode": (".gcode", ".nc"
 
 def cmd_export(args: argparse.Namespace) -> int:
     """Write the plotter program of a job for a device."""
-    from foldfab.atomic import write_text
+    from foldfab.atomic import write_files
     from foldfab.devices import load_device
 
     output = Path(args.output)
     device = load_device(args.device)
     _check_output(output, "-o", PROGRAM_SUFFIXES[device.protocol])
-    design, device, fab = _fabricate(args)
-    info = fabrication_report(fab, device)
-    write_text(output, fab.program.text)
-    info["written"] = str(output)
-    print(json.dumps(info, indent=2) if args.json else format_report(info) + f"\nwrote        {output}")
+    design, device, fabs = _fabricate_sheets(args, args.one_program)
+    paths = sheet_paths(output, len(fabs))
+    write_files([(path, fab.program.text.encode()) for path, fab in zip(paths, fabs)])
+    _report(args, device, fabs, paths)
     return 0
+
+
+def _report(args: argparse.Namespace, device, fabs: list, paths: list[Path]) -> None:
+    """Print the fabrication report of each sheet (one, unless the design is split)."""
+    infos = []
+    for path, fab in zip(paths, fabs):
+        info = fabrication_report(fab, device)
+        info["written"] = str(path)
+        infos.append(info)
+    if args.json:
+        print(json.dumps(infos[0] if len(infos) == 1 else {"sheets": infos}, indent=2))
+        return
+    for number, info in enumerate(infos, 1):
+        head = f"sheet        {number} of {len(infos)}\n" if len(infos) > 1 else ""
+        print(head + format_report(info) + f"\nwrote        {info['written']}")
 
 
 def cmd_preview(args: argparse.Namespace) -> int:
     """Render the dry run: the program read back and drawn as the machine would move."""
     output = Path(args.output)
     _check_output(output, "-o", (".svg",))
-    design, device, fab = _fabricate(args)
-    _write_preview(fab, device, output)
-    info = fabrication_report(fab, device)
-    info["written"] = str(output)
-    print(json.dumps(info, indent=2) if args.json else format_report(info) + f"\nwrote        {output}")
+    design, device, fabs = _fabricate_sheets(args, args.one_program)
+    paths = sheet_paths(output, len(fabs))
+    for path, fab in zip(paths, fabs):
+        _write_preview(fab, device, path)
+    _report(args, device, fabs, paths)
     return 0
 
 
@@ -108,6 +140,7 @@ def _add_fabrication_args(parser: argparse.ArgumentParser, output_help: str) -> 
     _add_max_faces(parser)
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     _add_scale_arg(parser)
+    _add_split_args(parser)
 
 
 def add_commands(sub) -> None:

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from foldfab.cli.common import (_add_max_faces, _add_scale_arg, _check_output, _fabricate, _int_from,
+from foldfab.cli.common import (_add_max_faces, _add_scale_arg, _add_split_args, _check_output, _fabricate, _int_from,
                                 _positive_int, _write_preview, fabrication_report, format_report)
 
 
@@ -261,6 +261,7 @@ def add_commands(sub) -> None:
     plot.add_argument("--json", action="store_true", help="progress as JSON lines on stdout")
     plot.add_argument("--allow-penetration", action="store_true", help="fabricate a design whose faces intersect")
     _add_scale_arg(plot)
+    _add_split_args(plot, one_program=False)   # a split design's sheets: one program, a pause before each
     _add_max_faces(plot)
     plot.set_defaults(func=cmd_plot)
 

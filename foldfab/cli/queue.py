@@ -7,7 +7,7 @@ import argparse
 import json
 import sys
 
-from foldfab.cli.common import _add_max_faces, _add_scale_arg, _fabricate, _int_from
+from foldfab.cli.common import _add_max_faces, _add_scale_arg, _add_split_args, _fabricate, _int_from
 
 
 def _queue_store(args: argparse.Namespace):
@@ -32,7 +32,7 @@ def cmd_queue_add(args: argparse.Namespace) -> int:
     for job in args.jobs:
         design, device, fab = _fabricate(argparse.Namespace(job=job, device=args.device, scale=args.scale,
                                                             allow_penetration=args.allow_penetration,
-                                                            max_faces=args.max_faces))
+                                                            max_faces=args.max_faces, split=args.split))
         port = args.port or device.port
         if not port:
             raise FoldfabError(f"{device.name} has no port: give --port PORT (a serial port such as /dev/ttyUSB0, "
@@ -293,6 +293,7 @@ def add_commands(sub) -> None:
                      help=f"higher runs first, {PRIORITIES[0]} to {PRIORITIES[1]} (default 0)")
     add.add_argument("--allow-penetration", action="store_true", help="queue a design whose faces intersect")
     _add_scale_arg(add)
+    _add_split_args(add, one_program=False)   # a split design: one job, a pause to load each sheet
     _add_max_faces(add)
     add.set_defaults(func=cmd_queue_add)
 

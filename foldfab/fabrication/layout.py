@@ -13,7 +13,7 @@ from foldfab.design import Design
 from foldfab.devices import Blade, DeviceProfile, Tool
 from foldfab.errors import FoldfabError
 from foldfab.fabrication.plan import Pass, Pause, PlotPlan
-from foldfab.fabrication.spec import FLIPS, LAYERS, FabricationSpec, flip_message, job_spec
+from foldfab.fabrication.spec import FLIPS, LAYERS, MARKS, FabricationSpec, flip_message, job_spec
 
 
 def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
@@ -24,21 +24,13 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
     better: computed from the extents, then placed and checked like any given scale."""
     from foldfab.fabrication.placement import fit, largest_scale, usable
 
-    sheet = spec.sheet or device.sheet
-    area = device.frame(sheet).device_rect_on_sheet(*device.plottable_area)
-    reach = "the device's plottable area"
     pts = design.crease_pattern.vertices
     bounds = (complex(*pts.min(axis=0)), complex(*pts.max(axis=0)))
     margin = spec.margin
     try:
-        if spec.strategy == "two-sided":
-            area = both_sides(area, sheet, spec.flip_edge)
-            reach += f" on both sides of the sheet (flipped {FLIPS[spec.flip_edge]})"
-        swing = max((blade.offset for blade in layer_blades(design, device, spec)[0].values() if blade), default=0.0)
-        if swing:  # the knife's axis goes up to its blade offset beyond the lines it cuts
-            area = (area[0] + swing, area[1] + swing, area[2] - swing, area[3] - swing)
-            margin = max(margin, swing)
-            reach += f" less the {swing:g} mm blade offset the knife swings out by"
+        sheet, area, reach = reachable(design, device, spec)
+        swing = _swing(design, device, spec)
+        margin = max(margin, swing)  # nor past the sheet's edge
         scale = spec.scale
         if scale == "fit":
             scale = largest_scale(bounds, usable(sheet, area, margin, reach), spec.rotate)
@@ -52,6 +44,29 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
             f"under {SMALLEST_STEPS} of the device's steps ({device.resolution:g} mm) across, so its creases would run "
             "together; set a larger [fabrication].scale (1 is the design's own size)")
     return placement, sheet
+
+
+def reachable(design: Design, device: DeviceProfile,
+              spec: FabricationSpec) -> tuple[tuple[float, float], tuple, str]:
+    """The sheet, the part of it the design's lines may take (x0, y0, x1, y1, sheet mm): the
+    device's reach, on both sides of a two-sided job's sheet, less a drag knife's swing; and the
+    words for that part, for errors."""
+    sheet = spec.sheet or device.sheet
+    area = device.frame(sheet).device_rect_on_sheet(*device.plottable_area)
+    reach = "the device's plottable area"
+    if spec.strategy == "two-sided":
+        area = both_sides(area, sheet, spec.flip_edge)
+        reach += f" on both sides of the sheet (flipped {FLIPS[spec.flip_edge]})"
+    swing = _swing(design, device, spec)
+    if swing:  # the knife's axis goes up to its blade offset beyond the lines it cuts
+        area = (area[0] + swing, area[1] + swing, area[2] - swing, area[3] - swing)
+        reach += f" less the {swing:g} mm blade offset the knife swings out by"
+    return sheet, area, reach
+
+
+def _swing(design: Design, device: DeviceProfile, spec: FabricationSpec) -> float:
+    """How far a drag knife's axis goes beyond the lines it cuts: the largest blade offset."""
+    return max((blade.offset for blade in layer_blades(design, device, spec)[0].values() if blade), default=0.0)
 
 
 def both_sides(area: tuple[float, float, float, float], sheet: tuple[float, float],
@@ -170,6 +185,7 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
     placed = placement.apply(scoring.vertex_points(cp))
     lines = {"valley": scoring.crease_lines(cp, "V", placed), "mountain": scoring.crease_lines(cp, "M", placed),
              "cut": scoring.outline_loops(cp, placed)}
+    marks = [placement.apply(m[:, 0] + 1j * m[:, 1]) for m in design.marks]
     if spec.strategy == "two-sided":
         flip = (lambda p: mirror(p, sheet[0])) if spec.flip_edge == "left" else \
                (lambda p: p.real + 1j * (sheet[1] - p.imag))
@@ -187,7 +203,22 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
         doc.layers[layer_id].set_property("vp_name", name)
         doc.layers[layer_id].set_property("vp_color", vp.Color(colour))
         steps.append(Pass(layer_id, name, tools[name], blades[name]))
+        if name == "valley" and marks:   # on the front, with the scoring tool: drawn, never cut
+            add_marks(doc, steps, marks, device)
     return PlotPlan(doc, steps, sheet)
+
+
+def add_marks(doc, steps: list, marks: list[np.ndarray], device: DeviceProfile) -> None:
+    """The ``marks`` layer (:data:`MARKS`): a split piece's numbers and match letters, strokes
+    in the cut layer's colour drawn with the valley's scoring tool (the profile's, never the
+    perforate strategy's cutting one)."""
+    import vpype as vp
+
+    layer_id, colour = MARKS
+    doc.add(marks, layer_id)
+    doc.layers[layer_id].set_property("vp_name", "marks")
+    doc.layers[layer_id].set_property("vp_color", vp.Color(colour))
+    steps.append(Pass(layer_id, "marks", device.tool_for("marks", like="valley")))
 
 
 def check_strokes(design: Design, spec: FabricationSpec, lines: dict[str, list[np.ndarray]]) -> None:

@@ -20,6 +20,8 @@ if TYPE_CHECKING:
 
 STRATEGIES = ("force", "perforate", "two-sided")
 LAYERS = {"valley": (1, "#0000ff"), "mountain": (2, "#ff0000"), "cut": (3, "#000000")}
+MARKS = (4, "#000000")
+"""Layer id and colour (the cut's) of a split piece's match marks: drawn or scored, never cut."""
 FLIPS = {"left": "left-right (about the vertical axis)", "top": "top-bottom (about the horizontal axis)"}
 """How the sheet of a two-sided job turns, by ``flip_edge``."""
 FLIP_EDGES = tuple(FLIPS)
@@ -46,6 +48,8 @@ class FabricationSpec:
     clearance: float = 1.0
     layers: dict[str, dict[str, Any]] = field(default_factory=dict)
     max_strokes: int = MAX_STROKES
+    split: str | tuple[int, ...] = ()            # "auto", or the mirror planes to cut after
+    split_height: tuple[int, ...] = ()           # the line elements to cut along
 
 
 PERFORATION_MIN = 0.1
@@ -61,7 +65,8 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
     from foldfab.fabrication.optimize import METHODS
 
     table = TomlTable(source, "fabrication", data, ("strategy", "sheet", "margin", "rotate", "scale", "optimize",
-                                                    "flip_edge", "perforate", "layers", "max_strokes"))
+                                                    "flip_edge", "perforate", "layers", "max_strokes",
+                                                    "split", "split_height"))
     defaults = FabricationSpec()
     strategy = table.string("strategy", "force", choices=STRATEGIES)
     sheet = None
@@ -106,8 +111,33 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
                     sub.fail(name, "expected a table of tool settings (pen, force, speed, passes)")
                 layers[name] = value
     max_strokes = table.integer("max_strokes", MAX_STROKES, minimum=1)
+    split, split_height = parse_split(table)
     return FabricationSpec(strategy, sheet, margin, rotate, scale, optimize, flip_edge, perforation, clearance, layers,
-                           max_strokes)
+                           max_strokes, split, split_height)
+
+
+def parse_split(table: TomlTable) -> tuple[str | tuple[int, ...], tuple[int, ...]]:
+    """``split`` ("auto" or a list of trajectory corners) and ``split_height`` (a list of profile
+    points): where the design is cut into pieces (foldfab.geometry.split).  Whether each cut
+    lies inside the design is checked when the design is built."""
+    split = table.get("split", [])
+    if split != "auto" and not _cut_list(split):
+        table.fail("split", f"expected \"auto\" (the fewest pieces that fit the sheet) or a list of trajectory corners "
+                            f"to cut after, such as [4, 8], got {split!r}")
+    height = table.get("split_height", [])
+    if not _cut_list(height):
+        table.fail("split_height", f"expected a list of profile points to cut after, such as [3], got {height!r}")
+    return (split if split == "auto" else tuple(sorted(split))), tuple(sorted(height))
+
+
+def _cut_list(value: Any) -> bool:
+    """A list of distinct whole numbers from 1 (a cut after corner or point 0 is no cut)."""
+    return (isinstance(value, list) and len(value) <= MAX_CUTS and len(set(value)) == len(value)
+            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in value))
+
+
+MAX_CUTS = 1000
+"""The most cuts a ``split`` list may name (each is a piece: a thousand sheets is plenty)."""
 
 
 def job_spec(job: Job) -> FabricationSpec:

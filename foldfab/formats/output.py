@@ -48,6 +48,9 @@ def design_file_data(design: Design, kind: str, suffix: str = "") -> bytes:
     raise ValueError(kind)  # pragma: no cover - the callers offer only the kinds above
 
 
-def write_design_files(design: Design, outputs: Sequence[tuple[str, Path]]) -> None:
-    """Write ``design`` as each ``(kind, path)``: all of them, or none (see :mod:`foldfab.atomic`)."""
-    write_files([(path, design_file_data(design, kind, path.suffix)) for kind, path in outputs])
+def write_design_files(design: Design, outputs: Sequence[tuple[str, Path]],
+                       pieces: Sequence[tuple[Design, Sequence[tuple[str, Path]]]] = ()) -> None:
+    """Write ``design`` as each ``(kind, path)``, and each of a split design's ``pieces`` as its
+    own: all of them, or none (see :mod:`foldfab.atomic`)."""
+    write_files([(path, design_file_data(part, kind, path.suffix))
+                 for part, files in [(design, outputs), *pieces] for kind, path in files])

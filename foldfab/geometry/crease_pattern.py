@@ -11,6 +11,7 @@ FOLD.  Pure geometry: no I/O.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,7 +71,7 @@ class CreasePattern:
         return tris[ok], owner[ok]
 
 
-def _face_normals(points: np.ndarray) -> np.ndarray:
+def face_normals(points: np.ndarray) -> np.ndarray:
     """Unit normals of the (J-1, C-1) grid quads, from the cross product of their diagonals."""
     a = points[:-1, :-1]
     b = points[:-1, 1:]
@@ -88,32 +89,64 @@ def _fold_angles(n1: np.ndarray, n2: np.ndarray, edge_dir: np.ndarray) -> np.nda
     return np.degrees(np.arctan2(sin, cos))
 
 
+def tab_edge(cut: np.ndarray, edge: np.ndarray, near_3d: np.ndarray, edge_3d: np.ndarray, width: float,
+             axis: int, tolerance: float, what: Callable[[int], str]) -> tuple[np.ndarray, np.ndarray]:
+    """The far edge of a glue tab ``width`` mm wide: the tab is the strip of the neighbouring panel
+    next to the cut, copied onto the cut's other side, so that it lies under that panel when folded.
+
+    ``cut`` (N, 2) are the cut's vertices on the sheet, ``edge`` (N, 2) the neighbouring panel's
+    edges that leave the cut across the panel (``near_3d``, ``edge_3d``: where they start and
+    run in the folded model), ``axis`` the sheet axis the width is measured along (0: x, for a
+    cut along a mirror crease; 1: y, along a line element).  The tab must not reach past the
+    panel's narrowest width: an edge shorter than ``width`` across is an error naming it
+    (``what(i)``).  Returns the tab's far vertices on the sheet (N, 2) and folded (N, 3)."""
+    across = np.abs(edge[:, axis])
+    if np.any(across < width - tolerance):
+        i = int(np.argmin(across))
+        raise DesignError(f"[crease].glue_tab: {width:g} mm is longer than {what(i)} ({across[i]:.4g} mm), "
+                          f"which the tab must lie on; reduce glue_tab to at most {across.min():.4g}")
+    t = (width / np.maximum(across, tolerance))[:, None]
+    return cut + t * edge, near_3d + t * edge_3d
+
+
+def tabbed_grid(grid: Reflection, glue_tab: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """The grid's crossings ``x`` (J, C) and 3D ``points`` (J, C, 3), with a closed design's seam
+    tab (``glue_tab`` > 0) as one more column lying on the first panel; and that column count (0 or 1)."""
+    x, points = grid.x, grid.points
+    if glue_tab <= 0:
+        return x, points, 0
+    if not grid.closed:
+        raise DesignError("[crease].glue_tab: a glue tab joins the two ends of a closed trajectory; "
+                          "this trajectory is open: set glue_tab = 0")
+    cut = np.column_stack([x[:, -1], grid.arc])
+    edge = np.column_stack([x[:, 1] - x[:, 0], np.zeros(len(x))])
+    far, far_3d = tab_edge(cut, edge, points[:, 0], points[:, 1] - points[:, 0], glue_tab, 0, grid.tolerance,
+                           lambda j: f"the first segment of line element {j}")
+    return np.column_stack([x, far[:, 0]]), np.concatenate([points, far_3d[:, None]], axis=1), 1
+
+
 def build_crease_pattern(grid: Reflection, flat_angle: float = 1.0, glue_tab: float = 0.0) -> CreasePattern:
     """Crease pattern of ``grid``; creases folding less than ``flat_angle`` degrees are flat."""
-    x, points = grid.x, grid.points
-    J = x.shape[0]
-    tab = glue_tab > 0
-    if tab:
-        if not grid.closed:
-            raise DesignError("[crease].glue_tab: a glue tab joins the two ends of a closed trajectory; "
-                              "this trajectory is open: set glue_tab = 0")
-        first = x[:, 1] - x[:, 0]
-        if np.any(first < glue_tab - grid.tolerance):
-            j = int(np.argmin(first))
-            raise DesignError(f"[crease].glue_tab: {glue_tab:g} mm is longer than the first segment of line element {j} "
-                              f"({first[j]:.4g} mm), which the tab must lie on; reduce glue_tab to at most {first.min():.4g}")
-        d0 = points[:, 1] - points[:, 0]
-        d0 = d0 / np.linalg.norm(d0, axis=-1, keepdims=True)
-        x = np.column_stack([x, x[:, -1] + glue_tab])
-        points = np.concatenate([points, (points[:, 0] + glue_tab * d0)[:, None]], axis=1)
-    C = x.shape[1]
-    y = grid.arc
+    x, points, tab_columns = tabbed_grid(grid, glue_tab)
+    J, C = x.shape
+    grid_ids = np.stack(np.meshgrid(np.arange(J - 1), np.arange(C - 1), indexing="ij"), axis=-1)
+    tab = grid_ids[..., 1] >= C - 1 - tab_columns
+    return grid_pattern(x, grid.arc, points, flat_angle, grid_ids, tab)
 
+
+def grid_pattern(x: np.ndarray, y: np.ndarray, points: np.ndarray, flat_angle: float, grid_ids: np.ndarray,
+                 tab: np.ndarray, keep: np.ndarray | None = None, normals: np.ndarray | None = None) -> CreasePattern:
+    """The crease pattern of a grid of crossings: ``x`` (J, C) on the sheet at heights ``y`` (J,),
+    ``points`` (J, C, 3) folded.  Its (J-1, C-1) cells are faces: ``grid_ids`` names each by the
+    design's (profile segment, trajectory segment), ``tab`` marks glue tabs, ``keep`` the cells
+    that are faces at all (default every one), ``normals`` their folded normals (default from
+    ``points``; a piece passes the whole design's, so that its folds are the design's exactly)."""
+    J, C = x.shape
     seglen = np.diff(x, axis=1)
     zero = seglen == 0.0
     both = zero[:-1] & zero[1:]
     if np.any(both):
-        j, k = map(int, np.argwhere(both)[0])
+        j, k = map(int, grid_ids[tuple(np.argwhere(both)[0])])
         raise DesignError(f"profile segment {j}-{j + 1} collapses to a line on trajectory segment {k} "
                           "(both its line elements have zero length there); move [profile].offset by a small amount")
 
@@ -123,11 +156,11 @@ def build_crease_pattern(grid: Reflection, flat_angle: float = 1.0, glue_tab: fl
     vertices = np.column_stack([x[new], np.broadcast_to(y[:, None], (J, C))[new]])
     vertices_3d = points[new]
 
-    jj, kk = np.meshgrid(np.arange(J - 1), np.arange(C - 1), indexing="ij")
     faces = np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], axis=-1).reshape(-1, 4)
-    face_grid = np.column_stack([jj.ravel(), kk.ravel()])
-    face_id = np.arange((J - 1) * (C - 1)).reshape(J - 1, C - 1)
-    normals = _face_normals(points)
+    face_grid = grid_ids.reshape(-1, 2)
+    kept = np.ones(len(faces), bool) if keep is None else keep.ravel()
+    face_id = np.where(kept, np.cumsum(kept) - 1, -1).reshape(J - 1, C - 1)
+    normals = (face_normals(points) if normals is None else normals).reshape(-1, 3)[kept]
 
     # Horizontal edges (along line elements), pointing +x: face (j, k) lies left (above), (j-1, k) right.
     hj, hk = np.nonzero(~zero)
@@ -147,11 +180,13 @@ def build_crease_pattern(grid: Reflection, flat_angle: float = 1.0, glue_tab: fl
     left = np.concatenate([h_left, s_left])
     right = np.concatenate([h_right, s_right])
     direction = np.concatenate([h_dir, s_dir])
+    present = (left >= 0) | (right >= 0)
+    edges, left, right, direction = edges[present], left[present], right[present], direction[present]
+    faces, face_grid = faces[kept], face_grid[kept]
     border = (left < 0) | (right < 0)
-    flat_normals = normals.reshape(-1, 3)
     angle = np.zeros(len(edges))
     inner = ~border
-    angle[inner] = _fold_angles(flat_normals[left[inner]], flat_normals[right[inner]], direction[inner])
+    angle[inner] = _fold_angles(normals[left[inner]], normals[right[inner]], direction[inner])
     flat_fold = inner & (np.abs(angle) > 180.0 - FLAT_FOLD_TOL)
     if np.any(flat_fold):
         e = int(np.argmax(flat_fold))
@@ -164,6 +199,10 @@ def build_crease_pattern(grid: Reflection, flat_angle: float = 1.0, glue_tab: fl
     assignment[folded & (angle > 0)] = VALLEY
     assignment[folded & (angle < 0)] = MOUNTAIN
     assignment[border] = BORDER
-    tab_faces = face_grid[:, 1] == C - 2 if tab else np.zeros(len(faces), bool)
+    if keep is not None:   # drop the vertices of cells that are no faces
+        used = np.zeros(len(vertices), bool)
+        used[faces.ravel()] = True
+        renumber = np.cumsum(used) - 1
+        vertices, vertices_3d, faces, edges = vertices[used], vertices_3d[used], renumber[faces], renumber[edges]
     return CreasePattern(vertices, vertices_3d, faces, face_grid, edges, assignment, angle,
-                         np.column_stack([left, right]), tab_faces)
+                         np.column_stack([left, right]), tab.ravel()[kept])

@@ -150,7 +150,7 @@ class _GcodeWriter:
         self.builder.start(sweep)
         self.comment(f"{sweep.name} pass, tool {sweep.tool.pen}, sweep {sweep.repeat + 1} "
                      f"of {sweep.tool.passes}")
-        if sweep.name not in self.device.layers:
+        if sweep.tool.pen_down is None and sweep.name not in self.device.layers:
             raise FoldfabError(
                 f"plan step {sweep.step + 1}: {self.device.name} has no [layers.{sweep.name}] "
                 f"table to say how deep the tool goes (known: {', '.join(self.device.layers)}); "

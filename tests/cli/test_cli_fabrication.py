@@ -133,11 +133,14 @@ def test_every_example_job_exports_previews_and_plots_on_every_device(tmp_path, 
     suffix = {"gcode": ".gcode", "ebb": ".ebb"}.get(load_device(device).protocol, ".plt")
     code, out, err = run(capsys, "export", job, "--device", device, "-o", tmp_path / f"x{suffix}")
     assert code == 0 and "foldfab: error" not in err, err
-    assert (tmp_path / f"x{suffix}").stat().st_size > 0 and "placement    scale " in out
+    programs = sorted(tmp_path.glob(f"x*{suffix}"))   # x.plt, or x-1.plt ... for a job split across sheets
+    assert programs and all(p.stat().st_size > 0 for p in programs) and "placement    scale " in out
     code, out, err = run(capsys, "preview", job, "--device", device, "-o", tmp_path / "x.svg")
     assert code == 0, err
-    assert "scale " in (tmp_path / "x.svg").read_text()
-    code, out, err = run(capsys, "plot", job, "--device", device, "--port", "sim://?time=instant")
+    previews = sorted(tmp_path.glob("x*.svg"))
+    assert len(previews) == len(programs) and all("scale " in p.read_text() for p in previews)
+    sheets = ["--yes"] if len(programs) > 1 else []   # answer "load sheet 2 of 3"
+    code, out, err = run(capsys, "plot", job, "--device", device, "--port", "sim://?time=instant", *sheets)
     assert code == 0, err
 
 

@@ -21,7 +21,7 @@ from foldfab.programs.interpret import interpret
 from foldfab.programs.languages import write_program
 from foldfab.fabrication.scoring import _chains, crease_lines, outline_loops
 from helpers import DEVICES, JOBS, ROOT
-from helpers.plans import spec
+from helpers.plans import spec, whole
 
 
 
@@ -171,7 +171,7 @@ def test_round_trip_every_job_every_device(job, device_name):
     """Every non-flat crease and the outline come back on their layer within one plotter unit, nothing else."""
     design = load_design(job)
     device = load_device(device_name)
-    fab = fabricate(design, device, spec())
+    fab = fabricate(design, device, spec(**whole(design)))
     run = interpret(fab.program, device, fab.plan.sheet)
     tol = 1.5 * device.resolution + 1e-9  # rounding + simplification bound (one unit: 0.001 mm in G-code)
     for layer in ("valley", "mountain", "cut"):
@@ -297,7 +297,7 @@ def test_a_design_scaled_below_ten_plotter_steps_is_refused(device_name):
     ({"perforate": {"valley": [0.05, 1]}}, r"\.valley: expected .* from 0\.1"),
     ({"layers": {"fold": {}}}, r"\[fabrication\.layers\]\.fold: unknown key; expected one of: cut, mountain, valley$"),
     ({"perforation": {}}, r"\[fabrication\]\.perforation: unknown key; did you mean 'perforate'\? expected one of: flip_edge, "
-                          r"layers, margin, max_strokes, optimize, perforate, rotate, scale, sheet, strategy$"),
+                          r"layers, margin, max_strokes, optimize, perforate, rotate, scale, sheet, split, split_height, strategy$"),
     ({"perforate": {"gap": 1}}, r"\[fabrication\.perforate\]\.gap: unknown key; expected one of: clearance, "
                                 r"mountain, valley$"),
     ({"colour": "red"}, r"\[fabrication\]\.colour: unknown key"),
@@ -325,7 +325,7 @@ def test_reported_travel_is_the_programs(job, strategy, device_name):
     """The optimizer's travel figures (the report's "pen-up travel") are what the program does:
     the interpreter's pen-up moves, park at every pause included, before and after optimizing."""
     device = load_device(device_name)
-    fab = fabricate(load_design(job), device, spec(strategy=strategy))
+    fab = fabricate(load_design(job), device, spec(strategy=strategy, **whole(job)))
     unoptimized = finish_plan(fab.layout, device, fab.spec, optimize="none")
     for plan, figures in ((fab.plan, fab.travel_after), (unoptimized, fab.travel_before)):
         run = interpret(write_program(plan, device), device, plan.sheet)

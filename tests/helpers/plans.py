@@ -24,6 +24,15 @@ def spec(**kw):
     return parse_fabrication(base, "test")
 
 
+def whole(job) -> dict:
+    """``spec`` keys that fabricate ``job`` (a path or a design) whole: a job made to be split
+    across sheets ([fabrication].split) is scaled to fit the sheet; any other is left as it is."""
+    from foldfab.job import load_job
+
+    fabrication = job.job.fabrication if hasattr(job, "job") else load_job(job).fabrication
+    return {"scale": "fit"} if fabrication.get("split") else {}
+
+
 def usable_rect(device: DeviceProfile, sheet=None) -> tuple[float, float, float, float]:
     """The part of the sheet the device reaches: (x0, y0, x1, y1) in sheet mm."""
     sheet = sheet or device.sheet

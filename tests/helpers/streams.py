@@ -44,8 +44,11 @@ def device_for(name: str, xonxoff_device: str):
 
 @functools.lru_cache(maxsize=None)
 def fabricated(job: str, device: str, strategy: str = "force"):
-    """The fabrication of ``job`` on ``device`` (A3, scale 0.4: every example job fits)."""
-    spec = parse_fabrication({"sheet": "A3", "margin": 5, "scale": 0.4, "strategy": strategy}, "test")
+    """The fabrication of ``job`` on ``device`` (A3, scale 0.4: every example job fits, but one
+    made to be split, which is fitted whole)."""
+    from helpers.plans import whole
+
+    spec = parse_fabrication({"sheet": "A3", "margin": 5, "scale": 0.4, "strategy": strategy, **whole(job)}, "test")
     return fabricate(load_design(job), load_device(device), spec)
 
 
