@@ -150,13 +150,14 @@ class _GcodeWriter:
         self.builder.start(sweep)
         self.comment(f"{sweep.name} pass, tool {sweep.tool.pen}, sweep {sweep.repeat + 1} "
                      f"of {sweep.tool.passes}")
-        if sweep.tool.pen_down is None and sweep.name not in self.device.layers:
+        if not self.device.laser and sweep.tool.pen_down is None and sweep.name not in self.device.layers:
             raise FoldfabError(
                 f"plan step {sweep.step + 1}: {self.device.name} has no [layers.{sweep.name}] "
                 f"table to say how deep the tool goes (known: {', '.join(self.device.layers)}); "
                 f"add one to {self.device.source} or rename the pass"
             )
-        down = sweep.tool.pen_down if sweep.tool.pen_down is not None else self.device.layers[sweep.name].pen_down
+        down = (None if self.device.laser  # a beam has no depth: its power is the tool's
+                else sweep.tool.pen_down if sweep.tool.pen_down is not None else self.device.layers[sweep.name].pen_down)
         feed = sweep.tool.speed * 60
         power = self.number(sweep.tool.power * self.device.gcode.spindle_max) if self.device.laser else None
         words = _xy_words(np.concatenate(sweep.lines)) if sweep.lines else []
