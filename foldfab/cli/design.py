@@ -68,7 +68,8 @@ def format_summary(info: dict) -> str:
     return "\n".join(lines)
 
 
-PROGRAM_SUFFIXES = {"hpgl": (".hpgl", ".plt", ".hpg"), "gcode": (".gcode", ".nc", ".gc", ".ngc")}
+PROGRAM_SUFFIXES = {"hpgl": (".hpgl", ".plt", ".hpg"), "gcode": (".gcode", ".nc", ".gc", ".ngc"),
+                    "gpgl": (".gpgl", ".gp")}
 
 
 def cmd_export(args: argparse.Namespace) -> int:

@@ -46,6 +46,9 @@ class FabricationSpec:
     clearance: float = 1.0
     layers: dict[str, dict[str, Any]] = field(default_factory=dict)
     max_strokes: int = MAX_STROKES
+    media: str | None = None
+    """A media preset of the device (``[media.NAME]`` in its profile): its tool settings for
+    scoring and cutting, under the job's own ``layers``."""
 
 
 PERFORATION_MIN = 0.1
@@ -61,7 +64,8 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
     from foldfab.fabrication.optimize import METHODS
 
     table = TomlTable(source, "fabrication", data, ("strategy", "sheet", "margin", "rotate", "scale", "optimize",
-                                                    "flip_edge", "perforate", "layers", "max_strokes"))
+                                                    "flip_edge", "perforate", "layers", "max_strokes",
+                                                    "media"))
     defaults = FabricationSpec()
     strategy = table.string("strategy", "force", choices=STRATEGIES)
     sheet = None
@@ -106,8 +110,9 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
                     sub.fail(name, "expected a table of tool settings (pen, force, speed, passes)")
                 layers[name] = value
     max_strokes = table.integer("max_strokes", MAX_STROKES, minimum=1)
+    media = table.string("media")
     return FabricationSpec(strategy, sheet, margin, rotate, scale, optimize, flip_edge, perforation, clearance, layers,
-                           max_strokes)
+                           max_strokes, media)
 
 
 def job_spec(job: Job) -> FabricationSpec:

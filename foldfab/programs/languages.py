@@ -1,6 +1,7 @@
 """The device languages foldfab writes, by the protocol a device profile names.
 
-One writer per language (:mod:`~foldfab.programs.hpgl`, :mod:`~foldfab.programs.gcode`), each
+One writer per language (:mod:`~foldfab.programs.hpgl`, :mod:`~foldfab.programs.gcode`,
+:mod:`~foldfab.programs.gpgl`), each
 building on the device-neutral :mod:`~foldfab.programs.program`; a new language is one module
 and one entry here.
 """
@@ -10,6 +11,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Callable
 
 from foldfab.programs.gcode import write_gcode
+from foldfab.programs.gpgl import write_gpgl
 from foldfab.programs.hpgl import write_hpgl
 
 if TYPE_CHECKING:
@@ -17,10 +19,11 @@ if TYPE_CHECKING:
     from foldfab.fabrication.plan import PlotPlan
     from foldfab.programs.program import Program
 
-WRITERS: dict[str, Callable[[PlotPlan, DeviceProfile], Program]] = {"hpgl": write_hpgl, "gcode": write_gcode}
+WRITERS: dict[str, Callable[[PlotPlan, DeviceProfile], Program]] = {"hpgl": write_hpgl, "gcode": write_gcode,
+                                                                    "gpgl": write_gpgl}
 """The program writer of each protocol (``DeviceProfile.protocol``)."""
 
 
 def write_program(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """Write ``plan`` in the device's language (HP-GL or G-code)."""
+    """Write ``plan`` in the device's language (HP-GL, G-code or GP-GL)."""
     return WRITERS[device.protocol](plan, device)

@@ -482,7 +482,8 @@ def test_fit_places_the_design_at_the_largest_scale_the_device_takes(device_name
         fabricate(design, device, parse_fabrication(dict(table, scale=fab.placement.scale * 1.001), "vase"))
 
 
-@pytest.mark.parametrize("device_name", DEVICES)
+# the hexagon's sheet, A4 landscape (297 mm across), is wider than the Portrait 3 takes (203 mm of reach)
+@pytest.mark.parametrize("device_name", [name for name in DEVICES if name != "silhouette-portrait-3"])
 def test_a_design_that_fits_keeps_scale_1_unless_fit_is_asked(device_name):
     design = load_design(ROOT / "jobs" / "hexagon-fig8a.toml")
     device = load_device(device_name)

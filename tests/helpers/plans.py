@@ -90,7 +90,7 @@ def expected_strokes(plan: PlotPlan) -> list[tuple[int, int, str, int, Tool, np.
 def assert_round_trip(plan: PlotPlan, device: DeviceProfile, program: Program) -> None:
     """The program draws every line of the plan on its pass, with its tool, and nothing else."""
     result = interpret(program, device, plan.sheet)
-    tolerance = 0.5 / device.units_per_mm * math.sqrt(2) + 1e-9 if device.protocol == "hpgl" \
+    tolerance = 0.5 / device.units_per_mm * math.sqrt(2) + 1e-9 if device.protocol != "gcode" \
         else 0.0005 * math.sqrt(2) + 1e-9
     expected = expected_strokes(plan)
     assert result.ignored == []
@@ -102,7 +102,7 @@ def assert_round_trip(plan: PlotPlan, device: DeviceProfile, program: Program) -
         assert stroke.points.shape == points.shape
         assert np.hypot(*(stroke.points - points).T).max() <= tolerance
         assert stroke.speed == pytest.approx(tool.speed)
-        if device.protocol == "hpgl":
+        if device.protocol != "gcode":
             assert (stroke.pen, stroke.force) == (tool.pen, tool.force)
         else:
             assert stroke.pen_down == device.layers[name].pen_down
