@@ -261,12 +261,12 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
     before = [p for p in program.pauses if p.offset <= cut]
     done = len(before) if pauses_done is None else pauses_done
     pending = before[done:]
-    pause_text = "" if not pending or program.protocol == "hpgl" else "M0\n"
+    pause_text = "" if not pending or program.protocol != "gcode" else "M0\n"
     state, travel = _tool_state(program, device, cut), _travel(device, target.points[0], program.protocol)
     head = preamble + pause_text
-    # HPGL selects the tool, then moves (as the writer does); G-code's travel is a G0, so the
-    # motion mode and feed are restored after it.
-    prelude = head + (state + travel if program.protocol == "hpgl" else travel + state)
+    # HP-GL and GP-GL select the tool, then move (as the writers do); G-code's travel is a G0, so
+    # the motion mode and feed are restored after it.
+    prelude = head + (state + travel if program.protocol != "gcode" else travel + state)
     shift = len(prelude) - cut
     pauses = [PauseMark(len(head), pending[0].step, " ".join(p.message for p in pending))] \
         if pending else []
@@ -400,12 +400,16 @@ def locate_resume(program: Program, device: DeviceProfile, port: str, stroke: in
 def _tolerance(program: Program) -> float:
     """How far apart two pen positions (device units) still match: half a plotter unit, GRBL's
     3 decimals."""
-    return 0.5 if program.protocol == "hpgl" else 0.0015
+    return 0.5 if program.protocol != "gcode" else 0.0015
 
 
 def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
     """Commands restoring the tool state ``program`` has set by byte ``offset``."""
     text = program.text[:offset]
+    if program.protocol == "gpgl":
+        from foldfab.programs.read_gpgl import tool_state
+
+        return tool_state(text)
     if program.protocol == "hpgl":
         from foldfab.programs.read_hpgl import HPGLTokenizer
 
@@ -440,6 +444,8 @@ def _travel(device: DeviceProfile, point, protocol: str) -> str:
     x, y = device.frame(device.sheet).to_device(np.asarray([point]))[0].tolist()
     if protocol == "hpgl":
         return f"PU{round(x)},{round(y)};"
+    if protocol == "gpgl":
+        return f"M{round(x)},{round(y)}\x03"
     return f"G0 X{fmt_number(x, 3)} Y{fmt_number(y, 3)}\n"
 
 
