@@ -86,12 +86,13 @@ class GPGLSender(Sender):
             self.ends[min(bisect.bisect_right(self.ends, self.sent), len(self.ends) - 1)]
         return min(max(end, self.sent + 1), stop)
 
-    def settle(self, limit: float) -> str:
+    def settle(self, limit: float, answer_within: float | None = None) -> str:
         """Poll the status until the cutter is ready; a fault if its tray is empty, it answers
-        something else, or it is still moving after ``limit`` seconds."""
+        something else, does not answer within ``answer_within`` seconds (default: the stall
+        timeout), or is still moving after ``limit`` seconds."""
         while True:
             self.check_cancel()
-            state = self.status()
+            state = self.status(self.stall_timeout if answer_within is None else answer_within)
             if state == READY:
                 self.alive = time.monotonic()
                 return state
@@ -108,15 +109,15 @@ class GPGLSender(Sender):
             self.receive(wait=True)  # the poll interval: a blocking read with its timeout
             self.tick()
 
-    def status(self) -> str:
+    def status(self, timeout: float) -> str:
         """Ask ``ESC 0x05`` and return the answer without its ETX."""
         self.inbox.clear()  # nothing else is ever asked: what came before is a late answer
         self.write(b"\x1b\x05")
-        deadline = time.monotonic() + self.stall_timeout + self.on_wire() * self.char_time
+        deadline = time.monotonic() + timeout + self.on_wire() * self.char_time
         while ETX not in self.inbox:
             if time.monotonic() > deadline:
                 raise _Fault(f"{self.device.name} did not answer the status request (ESC 0x05) within "
-                             f"{self.stall_timeout:.0f} s (switched off, hung, or a loose cable?)")
+                             f"{timeout:.0f} s (switched off, hung, or a loose cable?)")
             self.receive(wait=True)
         answer = bytes(self.inbox[:self.inbox.index(ETX)])
         del self.inbox[:self.inbox.index(ETX) + 1]
@@ -139,7 +140,8 @@ class GPGLSender(Sender):
                 break
             x, y = machine.position
         self.write(f"M{round(x)},{round(y)}\x03".encode("ascii"))
-        self.settle(self.patience(self.acked, self.sent) + self.stall_timeout)
+        limit = self.patience(self.acked, self.sent) + self.stall_timeout
+        self.settle(limit, answer_within=limit)
         self.acked = self.sent
         return ""
 
