@@ -28,13 +28,16 @@ import bisect
 import time
 
 from foldfab.errors import FoldfabError
-from foldfab.plotting.engines.base import Sender, _Fault
+from foldfab.plotting.engines.base import POLL, Sender, _Fault
 
 CHUNK = 1024
 """Bytes a chunk holds at most (inkscape-silhouette's ``safe_write``: Silhouette Studio sends 1 KiB
 packets by default, 3 KiB at most); never more than the profile's ``[buffer] size``."""
 LEAD = 1.0
 """Seconds of work (by the estimate) a chunk holds at most, beyond its first stroke."""
+FINE_POLL = 0.01
+"""Seconds between status polls once a chunk should be done by the estimate (for twice its
+time); :data:`~foldfab.plotting.engines.base.POLL` before and after."""
 READY, MOVING, TRAY_EMPTY = "0", "1", "2"
 """The answers to ``ESC 0x05``."""
 ESC, ETX = 0x1B, 0x03
@@ -46,6 +49,7 @@ class GPGLSender(Sender):
     def __init__(self, *args):
         super().__init__(*args)
         self.tray_empty = False  # the cutter said its sheet is out
+        self.questions = 0  # status requests whose answer has not been read
         self.limit = min(CHUNK, self.device.buffer.size)
         escapes = [i + 2 for i, byte in enumerate(self.data) if byte == ESC]
         self.ends = sorted({i + 1 for i, byte in enumerate(self.data) if byte == ETX} | set(escapes))
@@ -64,9 +68,11 @@ class GPGLSender(Sender):
             self.check_cancel()
             end = self.chunk_end(stop)
             self.write(self.data[self.sent:end])
+            done, progress = self.progress.time_done, self.progress
+            expect = done[progress.strokes_done(end)] - done[progress.strokes_done(self.sent)]
             self.sent = end
             self.alive = time.monotonic()
-            self.settle(self.patience(self.acked, self.sent))
+            self.settle(self.patience(self.acked, self.sent), expect=expect)
             self.acked = self.sent
             self.emit("progress")
 
@@ -86,10 +92,13 @@ class GPGLSender(Sender):
             self.ends[min(bisect.bisect_right(self.ends, self.sent), len(self.ends) - 1)]
         return min(max(end, self.sent + 1), stop)
 
-    def settle(self, limit: float, answer_within: float | None = None) -> str:
+    def settle(self, limit: float, answer_within: float | None = None, expect: float = 0.0) -> str:
         """Poll the status until the cutter is ready; a fault if its tray is empty, it answers
         something else, does not answer within ``answer_within`` seconds (default: the stall
-        timeout), or is still moving after ``limit`` seconds."""
+        timeout), or is still moving after ``limit`` seconds.  ``expect``: the estimated seconds
+        of work it holds: polls come every :data:`FINE_POLL` from then on, so the cutter waits
+        little for the next chunk."""
+        start = self.clock()
         while True:
             self.check_cancel()
             state = self.status(self.stall_timeout if answer_within is None else answer_within)
@@ -106,21 +115,36 @@ class GPGLSender(Sender):
             if self.stalled(limit):
                 raise _Fault(f"{self.device.name} stalled: still moving {limit:.0f} s after the last sign of "
                              "progress (jammed, or paused on its panel?)")
-            self.receive(wait=True)  # the poll interval: a blocking read with its timeout
+            elapsed = self.clock() - start
+            self.wait(FINE_POLL if 0.8 * expect <= elapsed <= 2 * expect + POLL else POLL)
             self.tick()
 
+    def wait(self, seconds: float) -> None:
+        """Let ``seconds`` pass on the cutter's clock: a blocking read with that timeout, no spinning."""
+        self.check_cancel()
+        self.port.timeout = seconds
+        try:
+            self.inbox += self.port.read(1)  # nothing is expected: a late answer at most
+        finally:
+            self.port.timeout = POLL
+
     def status(self, timeout: float) -> str:
-        """Ask ``ESC 0x05`` and return the answer without its ETX."""
-        self.inbox.clear()  # nothing else is ever asked: what came before is a late answer
+        """Ask ``ESC 0x05`` and return the answer without its ETX (the answers of earlier requests
+        that went unanswered in time come first: the last answer is this one's)."""
         self.write(b"\x1b\x05")
+        self.questions += 1
         deadline = time.monotonic() + timeout + self.on_wire() * self.char_time
-        while ETX not in self.inbox:
+        while self.questions:
+            if ETX in self.inbox:
+                answer = bytes(self.inbox[:self.inbox.index(ETX)])
+                del self.inbox[:self.inbox.index(ETX) + 1]
+                self.questions -= 1
+                continue
             if time.monotonic() > deadline:
                 raise _Fault(f"{self.device.name} did not answer the status request (ESC 0x05) within "
                              f"{timeout:.0f} s (switched off, hung, or a loose cable?)")
-            self.receive(wait=True)
-        answer = bytes(self.inbox[:self.inbox.index(ETX)])
-        del self.inbox[:self.inbox.index(ETX) + 1]
+            self.check_cancel()
+            self.inbox += self.port.read_until(b"\x03")  # blocks up to POLL (the port's timeout)
         return answer.decode("ascii", "replace").strip()
 
     def lift(self, suspect: bool) -> str:
