@@ -297,7 +297,7 @@ def test_a_design_scaled_below_ten_plotter_steps_is_refused(device_name):
     ({"perforate": {"valley": [0.05, 1]}}, r"\.valley: expected .* from 0\.1"),
     ({"layers": {"fold": {}}}, r"\[fabrication\.layers\]\.fold: unknown key; expected one of: cut, mountain, valley$"),
     ({"perforation": {}}, r"\[fabrication\]\.perforation: unknown key; did you mean 'perforate'\? expected one of: flip_edge, "
-                          r"layers, margin, max_strokes, optimize, perforate, rotate, scale, sheet, strategy$"),
+                          r"layers, margin, max_strokes, media, optimize, perforate, rotate, scale, sheet, strategy$"),
     ({"perforate": {"gap": 1}}, r"\[fabrication\.perforate\]\.gap: unknown key; expected one of: clearance, "
                                 r"mountain, valley$"),
     ({"colour": "red"}, r"\[fabrication\]\.colour: unknown key"),
