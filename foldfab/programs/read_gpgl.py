@@ -14,15 +14,11 @@ commands :mod:`~foldfab.programs.gpgl` writes.
 from __future__ import annotations
 
 import re
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
-from foldfab.programs.machine import Interpretation, Machine, PauseEvent
-
-if TYPE_CHECKING:
-    from foldfab.programs.program import PauseMark
+from foldfab.programs.machine import Interpretation, Machine
 
 ESC, ETX = 0x1B, 0x03
-_CHUNK = 1 << 16  # bytes GPGLMachine.run tokenizes at a time
 _END = re.compile(rb"[\x03\x1b]")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 _PARAMS = re.compile(r"\s*(?:{0}\s*(?:,\s*{0}\s*)*)?".format(_NUMBER.pattern))
@@ -141,25 +137,7 @@ class GPGLMachine(Machine):
         self.forces: dict[int | None, float | None] = {None: None}
 
     def run(self, text: str) -> Interpretation:
-        tokenizer = GPGLTokenizer()
-        self.deferred = []
-        marks = list(self.known.pauses) if self.known else []
-        data = text.encode("latin-1")
-        for start in range(0, len(data), _CHUNK):
-            for command in tokenizer.feed(data[start:start + _CHUNK]):
-                self.at = command.offset
-                while marks and marks[0].offset <= command.offset:
-                    self.pause(marks.pop(0))
-                self.execute(command)
-        self.at = len(text)
-        for mark in marks:
-            self.pause(mark)
-        return self.finish()
-
-    def pause(self, mark: PauseMark) -> None:
-        self.lift()
-        self.result.pauses.append(PauseEvent(mark.message, self.sheet_point(self.position),
-                                             mark.offset, len(self.result.strokes)))
+        return self.run_tokens(GPGLTokenizer(), text)
 
     def execute(self, command: GPGLCommand) -> None:
         name, params = command.name, command.params

@@ -23,19 +23,18 @@ from typing import TYPE_CHECKING
 
 from foldfab.programs.machine import Interpretation
 from foldfab.programs.read_gpgl import GPGLCommand, GPGLTokenizer
-from foldfab.sim.device import Simulator
+from foldfab.sim.device import CommandDevice
 from foldfab.sim.motion import TimedGPGL
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.programs.machine import Stroke
     from foldfab.sim.options import SimOptions
 
 READY, MOVING, TRAY_EMPTY = "0", "1", "2"
 """The answers to ``ESC 0x05``."""
 
 
-class GPGLCutter(Simulator):
+class GPGLCutter(CommandDevice):
     """Simulated GP-GL cutter."""
 
     protocol = "gpgl"
@@ -59,12 +58,8 @@ class GPGLCutter(Simulator):
     def interpretation(self) -> Interpretation:
         return Interpretation("gpgl", strokes=self.strokes, travels=self.machine.sheet_travels())
 
-    def _drawn(self) -> list[Stroke]:
-        return self.machine.strokes_at(self.machine.mark())
-
     def _store(self, data: bytes) -> None:
         super()._store(data)
-        self.commands.extend(self.tokenizer.feed(data))
         if self.unload_at is not None and self.stats.bytes_received >= self.unload_at:
             self._unload()
 
@@ -74,17 +69,6 @@ class GPGLCutter(Simulator):
         self.machine.lift()
         self._freeze("unloaded")
         self.stats.errors.append("tray empty")
-
-    def _hungry(self) -> bool:
-        return not self.frozen and not self.planner
-
-    def _work(self) -> None:
-        while not self.frozen and not self.planner:
-            command = self.commands.popleft() if self.commands else None
-            self._free(self.commands[0].offset if self.commands else self.tokenizer.committed)
-            if command is None:
-                return
-            self._execute(command)
 
     def _execute(self, command: GPGLCommand) -> None:
         self.count += 1
