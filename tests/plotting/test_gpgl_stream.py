@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import re
-import threading
 
 import pytest
 
@@ -17,10 +16,10 @@ from foldfab.devices import load_device
 from foldfab.plotting.engines.base import StreamStopped
 from foldfab.plotting.engines.gpgl import CHUNK
 from foldfab.plotting.progress import JobProgress
-from foldfab.plotting.resume import resume_program
 from foldfab.plotting.stream import locate_pen, stream
 from foldfab.errors import FoldfabError
 from helpers import GPGL_DEVICES, HEXAGON, JOBS
+from helpers import resumes
 from helpers.resumes import leading_matches
 from helpers.streams import fabricated, same_strokes, sim_port, strokes_of
 
@@ -62,29 +61,12 @@ def test_chunks_end_after_whole_commands_and_each_waits_for_ready():
     assert sum(o in ends for o in offsets) >= 0.9 * len(offsets)  # cut where a stroke ends
 
 
-def stop_and_resume(options: str, cancel_after: int | None = None, stall_timeout: float = 1.0, time="instant"):
-    """Run 1 until it stops; let the cutter finish what it holds; resume on a fresh cutter."""
+def stop_and_resume(options: str, cancel_after: int | None = None, time="instant"):
+    """The Cameo 4 drawing the vase stopped, then resumed on a fresh cutter."""
     device = load_device(CAMEO)
-    fab = fabricated(VASE, CAMEO)
-    port = sim_port(device, f"time={time}&{options}")
-    cancel = threading.Event()
-    if cancel_after is not None:
-        write = port._port.write
-
-        def counting(data):
-            if len(port.written) > cancel_after:
-                cancel.set()
-            return write(data)
-        port._port.write = counting
-    with pytest.raises(StreamStopped) as stopped:
-        stream(port, fab.program, device, cancel=cancel, stall_timeout=stall_timeout)
-    first = port.simulator
-    first.run_until_idle()
-    want = strokes_of(fab.program, device)
-    index = JobProgress(fab.program, device).strokes_done(stopped.value.acknowledged)
-    second = sim_port(device, "time=instant")
-    stream(second, resume_program(fab.program, device, index), device)
-    return stopped.value, first, second.simulator, index, want
+    stop, port, second, index, want = resumes.stop_and_resume(device, fabricated(VASE, CAMEO), options, cancel_after,
+                                                              time=time)
+    return stop, port.simulator, second, index, want
 
 
 def strokes_in_a_chunk(want, start: int) -> int:

@@ -28,7 +28,7 @@ from foldfab.plotting.engines.base import StreamStopped
 from foldfab.plotting.engines.hpgl import LEAD
 from foldfab.plotting.stream import stream
 from helpers import GPGL_DEVICES, JOBS, ROOT
-from helpers.resumes import FLOWS, job_for, leading_matches
+from helpers.resumes import FLOWS, job_for, leading_matches, stop_and_resume
 from helpers.streams import FAST_BAUD, fabricated, same_strokes, sim_port, strokes_of
 
 pytestmark = pytest.mark.usefixtures("state_home")
@@ -93,34 +93,6 @@ def stroke_window(message: str, program, device) -> int:
     """Strokes with bytes in the window an HP-GL error message names ("in program bytes A..B")."""
     start, end = map(int, re.search(r"in program bytes (\d+)\.\.(\d+)", message).groups())
     return strokes_in(program, device, start, end)
-
-
-def stop_and_resume(device, fab, options: str, cancel_after: int | None = None, stall_timeout=1.0,
-                    time="instant"):
-    """Run 1 until it stops; let the plotter finish what it holds; resume on a fresh plotter."""
-    port = sim_port(device, f"time={time}&{options}", baudrate=FAST_BAUD)
-    cancel = threading.Event()
-    if cancel_after is not None:
-        write = port._port.write
-
-        def counting(data):
-            if len(port.written) > cancel_after:
-                cancel.set()
-            return write(data)
-        port._port.write = counting
-    with pytest.raises(StreamStopped) as stopped:
-        stream(port, fab.program, device, cancel=cancel, operator=lambda m: True,
-               stall_timeout=stall_timeout)
-    first = port.simulator
-    first.run_until_idle()  # the plotter finishes whatever it still holds
-    stop = stopped.value
-    want = strokes_of(fab.program, device)
-    index = JobProgress(fab.program, device).strokes_done(stop.acknowledged)
-    second = sim_port(device, baudrate=FAST_BAUD)
-    if index < len(want):
-        stream(second, resume_program(fab.program, device, index, stop.pauses_done), device,
-               operator=lambda m: True)
-    return stop, port, second.simulator, index, want
 
 
 def tool_up(port) -> bool:
