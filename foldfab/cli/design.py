@@ -128,7 +128,7 @@ def add_commands(sub) -> None:
 
     export = sub.add_parser("export", help="write the plotter program (HPGL or G-code) for a device",
                             description="Score and cut a design: write the program a plotter receives.")
-    _add_fabrication_args(export, "program file (.hpgl/.plt for HPGL devices, .gcode/.nc for G-code)")
+    _add_fabrication_args(export, "program file (.hpgl/.plt for HPGL devices, .gcode/.nc for G-code, .gpgl for GP-GL)")
     export.set_defaults(func=cmd_export)
 
     preview = sub.add_parser("preview", help="dry run: render what the plotter would do as SVG",
