@@ -10,8 +10,9 @@ Run by hand:  python benchmarks/bench_stream.py   (about three minutes)
    as a share of the line rate (baud / 10 for 8N1).  foldfab's figure includes its checks:
    HP-GL ``OE`` checkpoints with an ``OA`` position check every 2048 bytes and at the end,
    GRBL's status position at the end.
-2. Motion-bound: the real profiles, ``time=instant``: the plotter's idle time while more
-   of the job was still to come (``starved``) as a share of its plot time.
+2. Motion-bound: the real profiles (and the Silhouette Cameo 4 in GP-GL), ``time=instant``:
+   the plotter's idle time while more of the job was still to come (``starved``) as a share
+   of its plot time.
 3. Host CPU while the plotter works: ``foldfab sim NAME --pty`` at real speed in another
    process, foldfab streaming for a fixed time; process CPU over wall time.
 4. The USB transports: the Roland GX-24 (HP-GL, no handshake) with motion made instant,
@@ -42,6 +43,8 @@ from foldfab.plotting.transport import open_port
 
 ROOT = Path(__file__).resolve().parent.parent
 DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
+GPGL = ["silhouette-cameo-4"]
+"""Motion-bound only: GP-GL has no reply per command for a send-and-wait to compare with."""
 SPEC = {"sheet": "A3", "margin": 5, "scale": 0.4}
 BAUD = 9600
 
@@ -103,7 +106,7 @@ def motion_bound() -> None:
     print("\n2. motion-bound: the profiles' own speeds (time=instant simulator); starved = idle "
           "with more to come")
     print(f"{'device':<18}{'job':<22}{'plot time s':>12}{'starved s':>11}{'starved':>9}")
-    for name in DEVICES:
+    for name in DEVICES + GPGL:
         device = load_device(name)
         for job, strategy in (("vase-svg", "force"), ("star", "perforate")):
             program = program_for(device, job, strategy)

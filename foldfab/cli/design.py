@@ -86,7 +86,8 @@ def format_summary(info: dict) -> str:
     return "\n".join(lines)
 
 
-PROGRAM_SUFFIXES = {"hpgl": (".hpgl", ".plt", ".hpg"), "gcode": (".gcode", ".nc", ".gc", ".ngc"), "ebb": (".ebb",)}
+PROGRAM_SUFFIXES = {"hpgl": (".hpgl", ".plt", ".hpg"), "gcode": (".gcode", ".nc", ".gc", ".ngc"), "ebb": (".ebb",),
+                    "gpgl": (".gpgl", ".gp")}
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -160,7 +161,8 @@ def add_commands(sub) -> None:
 
     export = sub.add_parser("export", help="write the plotter program (HPGL or G-code) for a device",
                             description="Score and cut a design: write the program a plotter receives.")
-    _add_fabrication_args(export, "program file (.hpgl/.plt for HPGL devices, .gcode/.nc for G-code, .ebb for EBB)")
+    _add_fabrication_args(export, "program file (.hpgl/.plt for HPGL devices, .gcode/.nc for G-code, .ebb for EBB, "
+                                  ".gpgl for GP-GL)")
     export.set_defaults(func=cmd_export)
 
     preview = sub.add_parser("preview", help="dry run: render what the plotter would do as SVG",

@@ -10,10 +10,11 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
 
     name = "graphtec-ce6000"        # required
     model = "Graphtec CE6000"       # required, free text
-    protocol = "hpgl"               # required: "hpgl" | "gcode" | "ebb"
+    protocol = "hpgl"               # required: "hpgl" | "gcode" | "ebb" | "gpgl"
     dialect = "graphtec"            # hpgl: "hp" | "graphtec" | "roland" (required); gcode: "grbl";
-                                    # ebb: "axidraw"
-    units_per_mm = 40               # hpgl, default 40 (1016 per inch); ebb: motor steps per mm, default 80
+                                    # ebb: "axidraw"; gpgl: "graphtec"
+    units_per_mm = 40               # hpgl, default 40 (1016 per inch); gpgl, default 20; ebb: motor
+                                    # steps per mm, default 80
     origin = "bottom-right"         # sheet corner at the device origin; must agree with the axes
     x_axis = "up"                   # direction of device +x on the sheet: right | left | up | down
     y_axis = "left"                 # direction of device +y; perpendicular to x_axis
@@ -50,6 +51,10 @@ Schema (all lengths in mm, speeds in mm/s; ``devices/README.md`` has the long fo
                a drag knife on a layer that cuts (never valley or mountain, which score):
                blade_offset (mm, 0..5, default 0: none), swivel_angle (degrees, 0..179,
                default 5), overcut (mm, 0..50, default 0) -- see foldfab.fabrication.blade
+    [gpgl]     gpgl only (required): blade_offset = [mm, ...], one per tool holder (FC; 0 for a
+               pen or a scoring tool); layer pens are tool holders 1..len(blade_offset)
+    [media.NAME]  optional presets a job picks with [fabrication] media = "NAME": description,
+               score = {force, speed, passes} (valley and mountain), cut = {...} (the outline)
 
 The profile's data model is :mod:`foldfab.devices.profile`, its value checks
 :mod:`foldfab.devices.checks`.
@@ -68,8 +73,8 @@ from foldfab.devices.checks import (_MISSING, _PEN_POSITION, _TOOL_KEYS, README_
                                     _choice_number, _integer, _laser_power, _number, _pair, _pen_position, _range,
                                     _Reader, _text, parse_sheet)
 from foldfab.devices.profile import (DIALECTS, DIRECTIONS, FLOW_CONTROLS, PARITIES, REQUIRED_LAYERS, BufferSettings,
-                                     DeviceProfile, EbbSettings, GcodeSettings, LayerDefaults, Limits, Motion,
-                                     SerialSettings, _origin_corner)
+                                     DeviceProfile, EbbSettings, GcodeSettings, GPGLSettings, LayerDefaults, Limits,
+                                     MediaPreset, Motion, SerialSettings, _origin_corner)
 from foldfab.errors import FoldfabError
 from foldfab.xdg import foldfab_dir
 
@@ -133,22 +138,22 @@ def _corner_name(ex, ey) -> str:
 
 _ROOT_KEYS = ("name", "model", "protocol", "dialect", "units_per_mm", "x_axis", "y_axis", "origin", "origin_offset",
               "plottable_area", "sheet", "port", "tool_changer", "serial", "buffer", "motion", "limits", "gcode",
-              "layers", "ebb", "firmware_blade_offset")
+              "layers", "ebb", "firmware_blade_offset", "gpgl", "media")
 """Every key at the top of a device profile."""
 
 
 def _parse(root: _Reader) -> DeviceProfile:
     name = root.take("name", "a device name", _text)
     model = root.take("model", "a model description", _text)
-    protocol = root.take("protocol", '"hpgl", "gcode" or "ebb"', _choice(DIALECTS))
+    protocol = root.take("protocol", '"hpgl", "gcode", "ebb" or "gpgl"', _choice(DIALECTS))
     dialects = DIALECTS[protocol]
-    default_dialect = {"gcode": "grbl", "ebb": "axidraw"}.get(protocol, _MISSING)
+    default_dialect = {"gcode": "grbl", "ebb": "axidraw", "gpgl": "graphtec"}.get(protocol, _MISSING)
     dialect = root.take(
         "dialect", " or ".join(f'"{d}"' for d in dialects), _choice(dialects), default_dialect
     )
-    if protocol in ("hpgl", "ebb"):
+    if protocol != "gcode":
         units = root.take("units_per_mm", "plotter units per mm > 0", _number(0, open_lo=True),
-                          40.0 if protocol == "hpgl" else EBB_STEPS_PER_MM)
+                          {"hpgl": 40.0, "gpgl": 20.0, "ebb": EBB_STEPS_PER_MM}[protocol])
     elif "units_per_mm" in root.data:
         raise root.fail("units_per_mm", "no units_per_mm (G-code is in mm)", root.data["units_per_mm"],
                         "remove it")
@@ -196,10 +201,10 @@ def _parse(root: _Reader) -> DeviceProfile:
         raise buf.fail("flow_control", f"a flow control enabled in [serial] "
                        f"({needs[buffer.flow_control][0]} = true)", buffer.flow_control,
                        f"set {needs[buffer.flow_control][0]} = true")
-    native = {"grbl": "gcode", "escb": "hpgl", "ebb": "ebb"}
-    if native.get(buffer.flow_control, protocol) != protocol:
+    native = {"grbl": "gcode", "escb": "hpgl", "ebb": "ebb", "status": "gpgl"}
+    if native.get(buffer.flow_control, protocol) != protocol or (protocol == "gpgl") != (buffer.flow_control == "status"):
         raise buf.fail("flow_control", f"a flow control for {protocol}", buffer.flow_control,
-                       "grbl is for G-code devices, escb for HPGL ones")
+                       "grbl is for G-code devices, escb for HPGL ones, status for (and only for) GP-GL ones")
     buf.done()
 
     mot = root.table("motion", keys=("draw_speed", "travel_speed", "acceleration", "pen_lift_time", "park",
@@ -214,7 +219,7 @@ def _parse(root: _Reader) -> DeviceProfile:
         junction_deviation=mot.take("junction_deviation", "mm > 0 (GRBL's $11)", positive, None),
         axis_limits=mot.take("axis_limits", "true or false", _boolean, False),
     )
-    if protocol == "hpgl" and motion.junction_deviation is not None:
+    if protocol != "gcode" and motion.junction_deviation is not None:
         raise mot.fail("junction_deviation", "no junction_deviation in an HPGL profile (GRBL's $11; "
                        "HPGL plotters are modelled stopping at corners)", motion.junction_deviation,
                        "remove it")
@@ -269,9 +274,62 @@ def _parse(root: _Reader) -> DeviceProfile:
         if blade is not None:
             blades[layer] = blade
         layers[layer] = _parse_layer(profile, reader)
+    profile = replace(profile, layers=MappingProxyType(layers), firmware_blade_offset=firmware,
+                      blades=MappingProxyType(blades))
+    profile = replace(profile, gpgl=_parse_gpgl(root, profile))
+    profile = replace(profile, media=_parse_media(root, profile))
     root.done()
-    return replace(profile, layers=MappingProxyType(layers), firmware_blade_offset=firmware,
-                   blades=MappingProxyType(blades))
+    return profile
+
+
+def _parse_gpgl(root: _Reader, profile: DeviceProfile) -> GPGLSettings | None:
+    """The ``[gpgl]`` table: required in a GP-GL profile, refused elsewhere; every layer's pen
+    must be one of its tool holders."""
+    table = root.table("gpgl", required=profile.protocol == "gpgl", keys=("blade_offset",))
+    if table is None:
+        return None
+    if profile.protocol != "gpgl":
+        raise root.fail("gpgl", f"no [gpgl] table in a {profile.protocol} profile", "[gpgl]", "remove it")
+    offsets = table.take("blade_offset", "a list of 1 to 8 blade offsets in mm from 0 to 2.35 (FC, "
+                         "one per tool holder)", _offsets)
+    table.done()
+    for name, layer in profile.layers.items():
+        if not 1 <= layer.pen <= len(offsets):
+            raise FoldfabError(f"{root.file}: key 'layers.{name}.pen': expected a tool holder from 1 to "
+                               f"{len(offsets)} (one per [gpgl] blade_offset), got {layer.pen}; {README_HINT}")
+    return GPGLSettings(offsets)
+
+
+def _offsets(value):
+    if not isinstance(value, list) or not 1 <= len(value) <= 8:
+        return None
+    items = [_number(0, 2.35)(v) for v in value]  # FC takes at most 47 units of 0.05 mm
+    return None if None in items else tuple(items)
+
+
+MEDIA_TOOL_KEYS = ("force", "speed", "passes")
+"""What a media preset sets for scoring and for cutting."""
+
+
+def _parse_media(root: _Reader, profile: DeviceProfile) -> MappingProxyType:
+    """The ``[media.NAME]`` presets, each checked against the layers' tools and the limits."""
+    tables = root.table("media", required=False)
+    presets = {}
+    for name in list(tables.data) if tables is not None else []:
+        preset = tables.table(name, keys=("description", "score", "cut"))
+        description = preset.take("description", "a description of the material", _text, name)
+        parts = {}
+        for part, layer in (("score", "valley"), ("cut", "cut")):
+            reader = preset.table(part, keys=MEDIA_TOOL_KEYS)
+            values = dict(reader.data)
+            base = profile.layers[layer]
+            tool = {key: reader.take(key, *_TOOL_KEYS[key], getattr(base, key)) for key in MEDIA_TOOL_KEYS}
+            _check_tool(profile, reader, pen=base.pen, **tool)
+            reader.done()
+            parts[part] = MappingProxyType(values)
+        preset.done()
+        presets[name] = MediaPreset(description, parts["score"], parts["cut"])
+    return MappingProxyType(presets)
 
 
 def _parse_layer(profile: DeviceProfile, reader: _Reader) -> LayerDefaults:

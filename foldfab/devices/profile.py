@@ -22,7 +22,7 @@ if TYPE_CHECKING:
 REQUIRED_LAYERS = ("valley", "mountain", "cut")
 DIRECTIONS = {"right": (1, 0), "left": (-1, 0), "down": (0, 1), "up": (0, -1)}
 PARITIES = {"none": "N", "even": "E", "odd": "O", "mark": "M", "space": "S"}
-FLOW_CONTROLS = ("xonxoff", "rtscts", "escb", "grbl", "none", "ebb")
+FLOW_CONTROLS = ("xonxoff", "rtscts", "escb", "grbl", "none", "ebb", "status")
 
 
 @dataclass(frozen=True)
@@ -49,7 +49,11 @@ DIALECTS = {
     "gcode": {"grbl": Dialect(force=False, force_step=None, speed_step=None)},
     # EiBotBoard: speeds are step rates over time slices, practically continuous
     "ebb": {"axidraw": Dialect(force=False, force_step=None, speed_step=None)},
+    # GP-GL (Graphtec, Silhouette): FX in whole force steps, "!" in whole cm/s
+    "gpgl": {"graphtec": Dialect(force=True, force_step=1.0, speed_step=10.0)},
 }
+INTEGER_UNITS = ("hpgl", "gpgl", "ebb")
+"""The languages whose coordinates are whole device units (G-code writes millimetres)."""
 
 
 @dataclass(frozen=True)
@@ -205,6 +209,30 @@ class LayerDefaults:
 
 
 @dataclass(frozen=True)
+class GPGLSettings:
+    """A GP-GL cutter's tool holders: the blade offset of each (``FC``), tool 1 first."""
+
+    blade_offset: tuple[float, ...]
+    """mm from the tool's axis to its tip (0 for a pen, a scoring or an embossing tool)."""
+
+    @property
+    def tools(self) -> int:
+        """How many tool holders the carriage has (more than one: ``J`` selects, and each
+        setting names its tool)."""
+        return len(self.blade_offset)
+
+
+@dataclass(frozen=True)
+class MediaPreset:
+    """Tool settings for one material: ``score`` for the valley and mountain layers, ``cut``
+    for the outline (job overrides of ``pen``, ``force``, ``speed``, ``passes``)."""
+
+    description: str
+    score: Mapping[str, Any]
+    cut: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
 class Frame:
     """Sheet millimetres <-> device units, for one device and one sheet size.
 
@@ -277,6 +305,8 @@ class DeviceProfile:
     foldfab moves no path and ignores a job's blade settings."""
     blades: Mapping[str, Blade] = field(default_factory=lambda: MappingProxyType({}))
     """The drag-knife compensation of each profile layer that sets one."""
+    gpgl: GPGLSettings | None = None
+    media: Mapping[str, MediaPreset] = field(default_factory=lambda: MappingProxyType({}))
 
     @property
     def resolution(self) -> float:
@@ -284,14 +314,14 @@ class DeviceProfile:
         HP-GL, one motor step on an EiBotBoard, the last of the :data:`GCODE_DECIMALS` decimals
         G-code coordinates are written with.
         Optimization merges and simplifies within it, so the program moves nothing further."""
-        return 1.0 / self.units_per_mm if self.protocol != "gcode" else 10.0 ** -GCODE_DECIMALS
+        return 1.0 / self.units_per_mm if self.protocol in INTEGER_UNITS else 10.0 ** -GCODE_DECIMALS
 
     @property
     def park_units(self) -> tuple[float, float]:
         """The park position in device units as programs write it (whole plotter units in
         HP-GL): where the pen waits at pauses and at the end, and so where a job starts."""
         x, y = (v * self.units_per_mm for v in self.motion.park)
-        return (round(x), round(y)) if self.protocol != "gcode" else (x, y)
+        return (round(x), round(y)) if self.protocol in INTEGER_UNITS else (x, y)
 
     @property
     def laser(self) -> bool:
@@ -338,6 +368,18 @@ class DeviceProfile:
         reader.done()
         _check_tool(self, reader, **values)
         return Tool(**values, pen_down=base.pen_down if like != layer_name else None, power=power)
+
+    def media_overrides(self, media: str | None, where: str) -> dict[str, dict[str, Any]]:
+        """The tool overrides of the media preset ``media`` by layer (valley and mountain get its
+        ``score``, cut its ``cut``); {} for None.  ``where`` names the job key in the error."""
+        if media is None:
+            return {}
+        if media not in self.media:
+            known = ", ".join(self.media) if self.media else "none (add [media.NAME] tables to the profile)"
+            raise FoldfabError(f"{where}: expected a media preset of {self.name}, got {media!r}; "
+                               f"its presets: {known}")
+        preset = self.media[media]
+        return {"valley": dict(preset.score), "mountain": dict(preset.score), "cut": dict(preset.cut)}
 
     def lacks(self, key: str) -> str | None:
         """Why this device has no ``key`` tool setting (None: it has it)."""

@@ -127,12 +127,13 @@ def layer_tools(design: Design, device: DeviceProfile,
     from foldfab.devices.blade import without_blade_keys
 
     source = f"{design.job.path}: [fabrication.layers]"
+    media = device.media_overrides(spec.media, f"{design.job.path}: [fabrication] media")
     tools, warnings = {}, []
     for name in LAYERS:
-        overrides, ignored = device.supported(without_blade_keys(spec.layers.get(name, {})),
+        like = "cut" if spec.strategy == "perforate" else name
+        overrides, ignored = device.supported({**media.get(like, {}), **without_blade_keys(spec.layers.get(name, {}))},
                                               f"{design.job.path}: [fabrication.layers.{name}]")
         warnings += ignored
-        like = "cut" if spec.strategy == "perforate" else name
         tools[name] = device.tool_for(name, overrides, source, like=like)
     return tools, warnings + layer_blades(design, device, spec)[1]
 

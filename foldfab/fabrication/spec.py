@@ -50,6 +50,9 @@ class FabricationSpec:
     max_strokes: int = MAX_STROKES
     split: str | tuple[int, ...] = ()            # "auto", or the mirror planes to cut after
     split_height: tuple[int, ...] = ()           # the line elements to cut along
+    media: str | None = None
+    """A media preset of the device (``[media.NAME]`` in its profile): its tool settings for
+    scoring and cutting, under the job's own ``layers``."""
 
 
 PERFORATION_MIN = 0.1
@@ -66,7 +69,7 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
 
     table = TomlTable(source, "fabrication", data, ("strategy", "sheet", "margin", "rotate", "scale", "optimize",
                                                     "flip_edge", "perforate", "layers", "max_strokes",
-                                                    "split", "split_height"))
+                                                    "split", "split_height", "media"))
     defaults = FabricationSpec()
     strategy = table.string("strategy", "force", choices=STRATEGIES)
     sheet = None
@@ -112,8 +115,10 @@ def parse_fabrication(data: dict, source: str) -> FabricationSpec:
                 layers[name] = value
     max_strokes = table.integer("max_strokes", MAX_STROKES, minimum=1)
     split, split_height = parse_split(table)
+    media = table.string("media")
     return FabricationSpec(strategy, sheet, margin, rotate, scale, optimize, flip_edge, perforation, clearance, layers,
-                           max_strokes, split, split_height)
+                           max_strokes, split, split_height, media)
+
 
 
 def parse_split(table: TomlTable) -> tuple[str | tuple[int, ...], tuple[int, ...]]:

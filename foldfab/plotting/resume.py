@@ -261,12 +261,12 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
     before = [p for p in program.pauses if p.offset <= cut]
     done = len(before) if pauses_done is None else pauses_done
     pending = before[done:]
-    pause_text = "" if not pending or program.protocol == "hpgl" else "M0\n"
+    pause_text = "" if not pending or program.protocol != "gcode" else "M0\n"
     state, travel = _tool_state(program, device, cut), _travel(device, target.points[0], program.protocol)
     head = preamble + pause_text
-    # HPGL selects the tool, then moves (as the writer does); G-code's travel is a G0, so the
-    # motion mode and feed are restored after it.
-    prelude = head + (state + travel if program.protocol == "hpgl" else travel + state)
+    # HP-GL and GP-GL select the tool, then move (as the writers do); G-code's travel is a G0, so
+    # the motion mode and feed are restored after it.
+    prelude = head + (state + travel if program.protocol != "gcode" else travel + state)
     if program.protocol == "ebb":  # relative moves: home first (HM), then from there
         from foldfab.programs.ebb import homing
 
@@ -413,6 +413,10 @@ def _tool_state(program: Program, device: DeviceProfile, offset: int) -> str:
     text = program.text[:offset]
     if program.protocol == "ebb":
         return ""  # the servo settings are in the preamble; speeds are in the moves themselves
+    if program.protocol == "gpgl":
+        from foldfab.programs.read_gpgl import tool_state
+
+        return tool_state(text)
     if program.protocol == "hpgl":
         from foldfab.programs.read_hpgl import HPGLTokenizer
 
@@ -452,6 +456,8 @@ def _travel(device: DeviceProfile, point, protocol: str) -> str:
         from foldfab.programs.ebb import travel
 
         return travel(device, np.asarray([x, y]))
+    if protocol == "gpgl":
+        return f"M{round(x)},{round(y)}\x03"
     return f"G0 X{fmt_number(x, 3)} Y{fmt_number(y, 3)}\n"
 
 

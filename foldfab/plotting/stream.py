@@ -5,13 +5,15 @@ draws overruns the buffer and commands are lost silently.  :func:`stream` sends 
 :class:`~foldfab.programs.program.Program` over an open pyserial port with the handshake the
 device profile's ``[buffer] flow_control`` names.  The engine is the protocol's sender in
 :mod:`foldfab.plotting.engines` (HP-GL: :mod:`~foldfab.plotting.engines.hpgl`, GRBL 1.1:
-:mod:`~foldfab.plotting.engines.grbl`), chosen by the profile's ``protocol``.
+:mod:`~foldfab.plotting.engines.grbl`, GP-GL: :mod:`~foldfab.plotting.engines.gpgl`), chosen by the
+profile's ``protocol``.
 
 Stopping (the ``cancel`` event, KeyboardInterrupt, a serial fault, a plotter error or a
 stall) stops sending, lifts the tool (HP-GL: the command being sent is finished, or
 after a plotter error ``ESC.K`` discards what the plotter holds, then ``PU;`` and a
 checkpoint; GRBL: feed hold ``!``, soft reset 0x18, ``$X`` if the reset left an alarm,
-then the program's own preamble, which lifts the tool) and raises
+then the program's own preamble, which lifts the tool; GP-GL: ``M`` to where the program has
+brought the tool, after what the cutter holds, or ``ESC 0x04`` once its tray is empty) and raises
 :class:`~foldfab.plotting.engines.base.StreamStopped` with the executed byte count a resume
 can start from.
 """

@@ -7,8 +7,9 @@ left the pen, and the last one back to it), and pauses.  Given a :class:`~foldfa
 than bare text, strokes are also labelled with their plan step, layer and
 repetition, and HPGL pauses (which exist only as offsets) are placed.
 
-This module dispatches by protocol: the languages' readers are :mod:`~foldfab.programs.read_hpgl`
-, :mod:`~foldfab.programs.read_gcode` and :mod:`~foldfab.programs.read_ebb`; what they draw is in :mod:`~foldfab.programs.machine`.
+This module dispatches by protocol: the languages' readers are :mod:`~foldfab.programs.read_hpgl`,
+:mod:`~foldfab.programs.read_gcode`, :mod:`~foldfab.programs.read_ebb` and :mod:`~foldfab.programs.read_gpgl`; what they
+draw is in :mod:`~foldfab.programs.machine`.
 """
 
 from __future__ import annotations
@@ -19,11 +20,17 @@ from foldfab.errors import FoldfabError
 from foldfab.programs.machine import Interpretation, Machine
 from foldfab.programs.read_ebb import EbbMachine, ebb_commands
 from foldfab.programs.read_gcode import GcodeMachine
+from foldfab.programs.read_gpgl import GPGLMachine, GPGLTokenizer
 from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
     from foldfab.programs.program import Program
+
+MACHINES: dict[str, type[Machine]] = {"hpgl": HPGLMachine, "gcode": GcodeMachine, "gpgl": GPGLMachine}
+"""The reader of each protocol (``DeviceProfile.protocol``)."""
+TOKENIZERS = {"hpgl": lambda: HPGLTokenizer(split_coordinates=True), "gpgl": GPGLTokenizer}
+"""The byte-stream tokenizers of the languages whose steps are commands (G-code's are lines)."""
 
 
 MACHINES = {"hpgl": HPGLMachine, "gcode": GcodeMachine, "ebb": EbbMachine}
@@ -51,12 +58,12 @@ def interpret(program: Program | str, device: DeviceProfile,
 
 def pen_states(text: str, protocol: str, device: DeviceProfile) -> Iterator[tuple[int, Machine]]:
     """(end offset, machine) after each step a plotter takes in program ``text``: an HP-GL
-    coordinate pair or instruction, a G-code line (at least one, even in an empty text).
-    The machine is the same object, updated in place."""
+    coordinate pair or instruction, a GP-GL command, a G-code line (at least one, even in an
+    empty text).  The machine is the same object, updated in place."""
     frame = device.frame(device.sheet)
-    if protocol == "hpgl":
-        machine = HPGLMachine(device, frame, None)
-        tokenizer = HPGLTokenizer(split_coordinates=True)
+    if protocol in TOKENIZERS:
+        machine = MACHINES[protocol](device, frame, None)
+        tokenizer = TOKENIZERS[protocol]()
         commands = tokenizer.feed(text.encode("ascii")) + tokenizer.close()
         for command, end in zip(commands, [c.offset for c in commands[1:]] + [len(text)]):
             machine.at = command.offset

@@ -1,6 +1,7 @@
 """The device languages foldfab writes, by the protocol a device profile names.
 
-One writer per language (:mod:`~foldfab.programs.hpgl`, :mod:`~foldfab.programs.gcode`), each
+One writer per language (:mod:`~foldfab.programs.hpgl`, :mod:`~foldfab.programs.gcode`,
+:mod:`~foldfab.programs.gpgl`), each
 building on the device-neutral :mod:`~foldfab.programs.program`; a new language is one module
 and one entry here.
 """
@@ -11,6 +12,7 @@ from typing import TYPE_CHECKING, Callable
 
 from foldfab.programs.ebb import write_ebb
 from foldfab.programs.gcode import write_gcode
+from foldfab.programs.gpgl import write_gpgl
 from foldfab.programs.hpgl import write_hpgl
 
 if TYPE_CHECKING:
@@ -19,10 +21,10 @@ if TYPE_CHECKING:
     from foldfab.programs.program import Program
 
 WRITERS: dict[str, Callable[[PlotPlan, DeviceProfile], Program]] = {"hpgl": write_hpgl, "gcode": write_gcode,
-                                                                       "ebb": write_ebb}
+                                                                       "ebb": write_ebb, "gpgl": write_gpgl}
 """The program writer of each protocol (``DeviceProfile.protocol``)."""
 
 
 def write_program(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """Write ``plan`` in the device's language (HP-GL, G-code or EBB)."""
+    """Write ``plan`` in the device's language (HP-GL, G-code, EBB or GP-GL)."""
     return WRITERS[device.protocol](plan, device)

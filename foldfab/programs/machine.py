@@ -21,6 +21,9 @@ if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile, Frame
     from foldfab.programs.program import PauseMark, Program, Section
 
+_CHUNK = 1 << 16
+"""Bytes :meth:`Machine.run_tokens` tokenizes at a time (a chunk's commands are garbage once run)."""
+
 
 @dataclass
 class Stroke:
@@ -121,6 +124,39 @@ class Machine:
         None until :meth:`finish` converts ``deferred_points`` (device units) all at once."""
         self.deferred_points = array("d")
 
+    def execute(self, command) -> None:
+        """Execute one command of the language (a reader's own)."""
+        raise NotImplementedError
+
+    def run_tokens(self, tokenizer, text: str) -> Interpretation:
+        """Run program ``text`` command by command, as ``tokenizer`` (``feed``, ``close``; commands
+        with an ``offset``) gives them, pausing first at the known program's pause marks (a
+        language without a pause command has them only as offsets)."""
+        self.deferred = []
+        marks = list(self.known.pauses) if self.known else []
+        data = text.encode("latin-1")
+        for start in range(0, len(data), _CHUNK):
+            self._run_commands(tokenizer.feed(data[start:start + _CHUNK]), marks)
+        self._run_commands(tokenizer.close(), marks)
+        self.at = len(text)
+        for mark in marks:
+            self.pause(mark)
+        return self.finish()
+
+    def _run_commands(self, commands: list, marks: list[PauseMark]) -> None:
+        """Execute ``commands``, pausing first at the ``marks`` they reach (popped)."""
+        for command in commands:
+            self.at = command.offset
+            while marks and marks[0].offset <= command.offset:
+                self.pause(marks.pop(0))
+            self.execute(command)
+
+    def pause(self, mark: PauseMark) -> None:
+        """The device stops here for the operator (with the pen up)."""
+        self.lift()
+        self.result.pauses.append(PauseEvent(mark.message, self.sheet_point(self.position),
+                                             mark.offset, len(self.result.strokes)))
+
     def lower(self, offset: int, **meta) -> None:
         if self.stroke is None:
             self.stroke = [self.position]
@@ -152,12 +188,6 @@ class Machine:
             self.travel_ends.extend(self.position + target)
             self.travel_next.append(len(self.result.strokes))
         self.position = target
-
-    def pause(self, mark: PauseMark) -> None:
-        """The device stops at ``mark`` for the operator (a language whose pauses are offsets)."""
-        self.lift()
-        self.result.pauses.append(PauseEvent(mark.message, self.sheet_point(self.position),
-                                             mark.offset, len(self.result.strokes)))
 
     def sheet_point(self, point: tuple[float, float]) -> tuple[float, float]:
         x, y = self.frame.to_sheet(point)[0].tolist()

@@ -12,16 +12,12 @@ command by command on a virtual clock.
 from __future__ import annotations
 
 import re
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 from foldfab.programs.machine import Interpretation, Machine
 
-if TYPE_CHECKING:
-    from foldfab.programs.program import PauseMark
-
 ESC, ETX = 0x1B, 0x03
 ESC_WITH_PARAMETERS = b"@HIMNT"  # ESC . x <parameters> :   (the others take none)
-_CHUNK = 1 << 16  # bytes HPGLMachine.run tokenizes at a time
 _PARAM_RUN = re.compile(rb"[0-9+\-.,\s]*")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 _NUMBER_BYTES = re.compile(_NUMBER.pattern.encode())
@@ -246,25 +242,7 @@ class HPGLMachine(Machine):
         self.forces: dict[int | None, float | None] = {None: None}
 
     def run(self, text: str) -> Interpretation:
-        tokenizer = HPGLTokenizer()
-        self.deferred = []
-        marks = list(self.known.pauses) if self.known else []
-        data = text.encode("latin-1")
-        for start in range(0, len(data), _CHUNK):  # a chunk's commands are garbage once run
-            self._run_commands(tokenizer.feed(data[start:start + _CHUNK]), marks)
-        self._run_commands(tokenizer.close(), marks)
-        self.at = len(text)
-        for mark in marks:
-            self.pause(mark)
-        return self.finish()
-
-    def _run_commands(self, commands: list[HPGLCommand], marks: list[PauseMark]) -> None:
-        """Execute ``commands``, pausing first at the ``marks`` they reach (popped)."""
-        for command in commands:
-            self.at = command.offset
-            while marks and marks[0].offset <= command.offset:
-                self.pause(marks.pop(0))
-            self.execute(command)
+        return self.run_tokens(HPGLTokenizer(), text)
 
     def execute(self, command: HPGLCommand) -> None:
         name, params = command.name, command.params

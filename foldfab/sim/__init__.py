@@ -1,9 +1,10 @@
 """Simulated plotters that behave like the real ones, faults included.
 
 No plotter is attached to the test machines, so foldfab ships one simulator per
-protocol: :class:`~foldfab.sim.hpgl.HPGLPlotter` (HP-GL plotters and cutters) ,
-:class:`~foldfab.sim.grbl.GrblController` (GRBL 1.1) and :class:`~foldfab.sim.ebb.EbbBoard`
-(the EiBotBoard of AxiDraw pen plotters).  All are configured from a
+protocol: :class:`~foldfab.sim.hpgl.HPGLPlotter` (HP-GL plotters and cutters),
+:class:`~foldfab.sim.grbl.GrblController` (GRBL 1.1), :class:`~foldfab.sim.ebb.EbbBoard`
+(the EiBotBoard of AxiDraw pen plotters) and :class:`~foldfab.sim.gpgl.GPGLCutter`
+(Silhouette and Graphtec cutters in GP-GL).  All are configured from a
 device profile and :class:`~foldfab.sim.options.SimOptions`, run on a virtual clock
 (timing model: :mod:`foldfab.sim.device`), record every stroke they draw and keep
 :class:`~foldfab.sim.record.SimStats`.
@@ -38,6 +39,10 @@ def create_simulator(device: DeviceProfile, options: SimOptions | None = None) -
         from foldfab.sim.ebb import EbbBoard
 
         return EbbBoard(device, options)
+    if device.protocol == "gpgl":
+        from foldfab.sim.gpgl import GPGLCutter
+
+        return GPGLCutter(device, options)
     from foldfab.sim.grbl import GrblController
 
     return GrblController(device, options)

@@ -562,3 +562,32 @@ class Simulator:
 
     def _drawn(self) -> list[Stroke]:
         raise NotImplementedError
+
+
+class CommandDevice(Simulator):
+    """A device that reads one command (or coordinate pair) out of its buffer when the previous
+    move has ended, so its buffer drains at motion speed (HP-GL, GP-GL).  The protocol class
+    gives ``tokenizer`` (incremental, with ``committed``), ``commands`` (a deque), ``machine``
+    (a timed reader, :mod:`foldfab.sim.motion`) and :meth:`_execute`."""
+
+    def _drawn(self) -> list[Stroke]:
+        return self.machine.strokes_at(self.machine.mark())
+
+    def _store(self, data: bytes) -> None:
+        super()._store(data)
+        self.commands.extend(self.tokenizer.feed(data))
+
+    def _hungry(self) -> bool:
+        return not self.frozen and not self.planner
+
+    def _work(self) -> None:
+        while not self.frozen and not self.planner:
+            command = self.commands.popleft() if self.commands else None
+            self._free(self.commands[0].offset if self.commands else self.tokenizer.committed)
+            if command is None:
+                return
+            self._execute(command)
+
+    def _execute(self, command) -> None:
+        """Execute one command taken out of the buffer."""
+        raise NotImplementedError

@@ -31,19 +31,18 @@ from typing import TYPE_CHECKING
 
 from foldfab.programs.machine import Interpretation
 from foldfab.programs.read_hpgl import COORDINATE_COMMANDS, HPGLCommand, HPGLTokenizer
-from foldfab.sim.device import Simulator
+from foldfab.sim.device import CommandDevice
 from foldfab.sim.motion import TimedHPGL
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
-    from foldfab.programs.machine import Stroke
     from foldfab.sim.options import SimOptions
 
 ACCEPTED_DEVICE_CONTROL = frozenset("ESC." + c for c in "@HIMNTRJ()YZ")
 """Handshake and configuration instructions: accepted, no effect in the simulator."""
 
 
-class HPGLPlotter(Simulator):
+class HPGLPlotter(CommandDevice):
     """Simulated HP-GL device."""
 
     protocol = "hpgl"
@@ -66,24 +65,6 @@ class HPGLPlotter(Simulator):
 
     def interpretation(self) -> Interpretation:
         return Interpretation("hpgl", strokes=self.strokes, travels=self.machine.sheet_travels())
-
-    def _drawn(self) -> list[Stroke]:
-        return self.machine.strokes_at(self.machine.mark())
-
-    def _store(self, data: bytes) -> None:
-        super()._store(data)
-        self.commands.extend(self.tokenizer.feed(data))
-
-    def _hungry(self) -> bool:
-        return not self.frozen and not self.planner
-
-    def _work(self) -> None:
-        while not self.frozen and not self.planner:
-            command = self.commands.popleft() if self.commands else None
-            self._free(self.commands[0].offset if self.commands else self.tokenizer.committed)
-            if command is None:
-                return
-            self._execute(command)
 
     def _execute(self, command: HPGLCommand) -> None:
         if command.part == 0:

@@ -41,6 +41,7 @@ from foldfab.programs.estimate import (CONTINUATION_ANGLE, junction_speeds, move
                               segment_times, travel_times)
 from foldfab.programs.machine import Stroke
 from foldfab.programs.read_gcode import GcodeMachine
+from foldfab.programs.read_gpgl import GPGLMachine
 from foldfab.programs.read_hpgl import HPGLMachine
 
 Point = tuple[float, float]
@@ -200,6 +201,10 @@ class Timed:
 
 class TimedHPGL(Timed, HPGLMachine):
     """HP-GL machine with timed blocks."""
+
+
+class TimedGPGL(Timed, GPGLMachine):
+    """GP-GL machine with timed blocks."""
 
 
 class TimedGcode(Timed, GcodeMachine):

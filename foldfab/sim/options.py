@@ -29,6 +29,9 @@ Every option, its type and meaning (the fault options describe what a test provo
 ``stall``              seconds the device stops consuming and answering, once
 ``stall_at``           received byte count that starts the stall (default: four buffers)
 ``mute``               1: the device never answers: no banner, replies, XON; CTS low
+``unload_at``          GP-GL: after the device received that many bytes its sheet comes out
+                       (0: none is loaded): it lifts the tool, stops, and answers status
+                       ``2`` (tray empty)
 ``power_cycle``        1: the plotter is switched off and on once the first port to it has
                        closed or lost its cable: the next open finds a fresh one (at the
                        origin, pen up, holding nothing, initialized; a GRBL board greets
@@ -74,11 +77,12 @@ class SimOptions:
     stall: float = 0.0
     stall_at: int | None = None
     mute: bool = False
+    unload_at: int | None = None
     power_cycle: bool = False
     session: str | None = None
 
     FAULTS = ("disconnect_after", "error_at", "error_code", "noise", "seed", "stall", "stall_at",
-              "mute", "power_cycle")
+              "mute", "unload_at", "power_cycle")
     """What a test provokes (spent when the plotter is switched off and on: ``power_cycle``)."""
 
     def switched_on(self) -> SimOptions:
@@ -138,6 +142,7 @@ _PARSERS = {
     "stall": ("seconds >= 0", _seconds),
     "stall_at": ("a byte count", _count(0)),
     "mute": ("0 or 1", _flag),
+    "unload_at": ("a byte count", _count(0)),
     "power_cycle": ("0 or 1", _flag),
     "session": ("a name of letters, digits, '.', '_' or '-'",
                 lambda t: t if re.fullmatch(r"[\w.-]+", t) else None),

@@ -125,7 +125,7 @@ def layer_named(strokes: list[Stroke], device: DeviceProfile) -> list[Stroke]:
 
     by_tool: dict[tuple, list[str]] = {}
     for name, layer in device.layers.items():
-        by_tool.setdefault((layer.pen if device.protocol == "hpgl" else None, layer.force,
+        by_tool.setdefault((layer.pen if device.protocol != "gcode" else None, layer.force,
                             layer.pen_down, _rounded(layer.power)), []).append(name)
     named = []
     for stroke in strokes:

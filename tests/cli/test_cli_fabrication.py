@@ -125,12 +125,14 @@ def test_export_exit_code_in_a_real_process(tmp_path):
 DEVICE_FILES = sorted((ROOT / "devices").glob("*.toml"))
 
 
-@pytest.mark.parametrize("device", [p.stem for p in DEVICE_FILES])
-@pytest.mark.parametrize("job", JOBS, ids=[p.stem for p in JOBS])
+# (the hexagon's sheet, A4 landscape, is wider than the Portrait 3 takes: refused, test_fabrication)
+@pytest.mark.parametrize("device, job", [(p.stem, job) for p in DEVICE_FILES for job in JOBS
+                                         if (p.stem, job.stem) != ("silhouette-portrait-3", "hexagon-fig8a")],
+                         ids=lambda v: getattr(v, "stem", v))
 def test_every_example_job_exports_previews_and_plots_on_every_device(tmp_path, capsys, monkeypatch, job, device):
     """Every job in jobs/ on every profile in devices/, with no option but --device (and --port)."""
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
-    suffix = {"gcode": ".gcode", "ebb": ".ebb"}.get(load_device(device).protocol, ".plt")
+    suffix = {"gcode": ".gcode", "ebb": ".ebb", "gpgl": ".gpgl"}.get(load_device(device).protocol, ".plt")
     code, out, err = run(capsys, "export", job, "--device", device, "-o", tmp_path / f"x{suffix}")
     assert code == 0 and "foldfab: error" not in err, err
     programs = sorted(tmp_path.glob(f"x*{suffix}"))   # x.plt, or x-1.plt ... for a job split across sheets

@@ -146,3 +146,20 @@ class ScriptedGrbl:
             else:
                 self.line.append(byte)
         return len(data)
+
+
+def send_status(port, data: bytes, chunk: int = 1024) -> None:
+    """GP-GL pacing as the open drivers do it: a chunk cut after a command, then ESC 0x05 until "0"
+    (the polls 50 ms apart: a read that expects nothing)."""
+    sent = 0
+    while sent < len(data):
+        end = data.rfind(b"\x03", sent, sent + chunk) + 1 or len(data)
+        port.write(data[sent:end])
+        sent = end
+        while True:
+            port.write(b"\x1b\x05")
+            if port.read_until(b"\x03") == b"0\x03":
+                break
+            timeout, port.timeout = port.timeout, 0.05
+            assert port.read(1) == b""
+            port.timeout = timeout

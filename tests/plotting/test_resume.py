@@ -27,7 +27,7 @@ from foldfab.plotting.resume import (PlotStopped, ResumeState, check_state, load
 from foldfab.plotting.engines.base import StreamStopped
 from foldfab.plotting.engines.hpgl import LEAD
 from foldfab.plotting.stream import stream
-from helpers import JOBS, ROOT
+from helpers import GPGL_DEVICES, JOBS, ROOT
 from helpers.resumes import FLOWS, job_for, leading_matches, stop_and_resume
 from helpers.streams import FAST_BAUD, fabricated, same_strokes, sim_port, strokes_of
 
@@ -38,7 +38,7 @@ pytestmark = pytest.mark.usefixtures("state_home")
 
 
 @pytest.mark.parametrize("strategy", ["force", "two-sided", "perforate"])
-@pytest.mark.parametrize("name", ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"])
+@pytest.mark.parametrize("name", ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl", *GPGL_DEVICES])
 @pytest.mark.parametrize("job", JOBS, ids=[j.stem for j in JOBS])
 def test_resume_program_draws_exactly_the_remaining_strokes(job, name, strategy):
     device = load_device(name)

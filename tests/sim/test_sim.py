@@ -34,6 +34,7 @@ from foldfab.sim.pty import serve_pty
 from foldfab.plotting.transport import open_port, register_handlers
 from helpers import DEVICES, ROOT
 from helpers.plans import spec
+from helpers.streams import send_status
 
 JOB = ROOT / "jobs" / "hexagon-fig8a.toml"
 SHEET = "297x420"  # the A3 sheet of spec()
@@ -153,6 +154,8 @@ def careful_send(port, device, data: bytes) -> None:
         Grbl(port).send(data.decode())
     elif flow in ("escb", "none"):
         send_escb(port, data)
+    elif flow == "status":
+        send_status(port, data)
     else:
         port.write(data)
     port.simulator.run_until_idle()
