@@ -1,6 +1,6 @@
 """Read plotter programs back: what would the device draw, with which tool, where?
 
-:func:`interpret` turns an HPGL or G-code program into an :class:`Interpretation`:
+:func:`interpret` turns a program (HP-GL, G-code, EBB, GP-GL) into an :class:`Interpretation`:
 pen-down strokes in sheet millimetres with the tool state the program set, pen-up
 travel moves (including the first one from the park position, where the last job
 left the pen, and the last one back to it), and pauses.  Given a :class:`~foldfab.programs.program.Program` rather
@@ -27,14 +27,11 @@ if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
     from foldfab.programs.program import Program
 
-MACHINES: dict[str, type[Machine]] = {"hpgl": HPGLMachine, "gcode": GcodeMachine, "gpgl": GPGLMachine}
+MACHINES: dict[str, type[Machine]] = {"hpgl": HPGLMachine, "gcode": GcodeMachine, "ebb": EbbMachine,
+                                      "gpgl": GPGLMachine}
 """The reader of each protocol (``DeviceProfile.protocol``)."""
 TOKENIZERS = {"hpgl": lambda: HPGLTokenizer(split_coordinates=True), "gpgl": GPGLTokenizer}
 """The byte-stream tokenizers of the languages whose steps are commands (G-code's are lines)."""
-
-
-MACHINES = {"hpgl": HPGLMachine, "gcode": GcodeMachine, "ebb": EbbMachine}
-"""The reader of each protocol."""
 
 
 def interpret(program: Program | str, device: DeviceProfile,

@@ -112,7 +112,7 @@ def assert_round_trip(plan: PlotPlan, device: DeviceProfile, program: Program) -
         assert stroke.points.shape == points.shape
         assert np.hypot(*(stroke.points - points).T).max() <= tolerance
         assert stroke.speed == pytest.approx(tool.speed)
-        if device.protocol != "gcode":
+        if device.protocol in ("hpgl", "gpgl"):  # EBB and G-code strokes carry no pen number or force
             assert (stroke.pen, stroke.force) == (tool.pen, tool.force)
         else:
             assert stroke.pen_down == device.layers[name].pen_down
