@@ -1,7 +1,7 @@
 """The ``foldfab`` command line: parses arguments, calls the library, prints.
 
 Every command is a thin layer over library functions, in one module per command group:
-:mod:`~foldfab.cli.design` (design, export, preview), :mod:`~foldfab.cli.plot`,
+:mod:`~foldfab.cli.design` (design, export, preview), :mod:`~foldfab.cli.plot`, :mod:`~foldfab.cli.print`,
 :mod:`~foldfab.cli.queue`, :mod:`~foldfab.cli.sim` and :mod:`~foldfab.cli.studio`, each adding
 its subcommands to the parser built here; what several share is in :mod:`~foldfab.cli.common`.
 Heavy modules (numpy, trimesh, vpype) are imported inside the command functions so
@@ -15,6 +15,7 @@ import argparse
 import sys
 
 from foldfab.cli import design, plot, queue, sim, studio
+from foldfab.cli import print as print_template
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -30,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     design.add_commands(sub)
     plot.add_commands(sub)
+    print_template.add_commands(sub)
     queue.add_commands(sub)
     sim.add_commands(sub)
     studio.add_commands(sub)

@@ -1,0 +1,67 @@
+"""A crease pattern's edges joined into straight-on polylines per kind, so that a dash
+pattern runs on along a whole crease instead of restarting at every vertex (a mirror crease
+of a fine profile is thousands of edges shorter than one dash)."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+
+from foldfab.geometry.crease_pattern import CreasePattern
+
+STRAIGHT = 0.5
+"""Cosine of the largest turn a polyline takes at a vertex (60 degrees): a mirror crease
+zigzags gently, while a line element crossing it turns 90 degrees or more."""
+
+
+def crease_polylines(cp: CreasePattern, kinds: tuple[str, ...]) -> dict[str, list[np.ndarray]]:
+    """The edges of each kind in ``kinds`` (B, M, V, F) as polylines of crease-pattern points:
+    every edge in exactly one polyline, each polyline turning by at most 60 degrees at a vertex."""
+    return {kind: _chain(cp.vertices, cp.edges[cp.assignment == kind]) for kind in kinds}
+
+
+def _chain(vertices: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
+    """Greedy walk: from each unused edge, extend both ways along the straightest unused edge."""
+    if not len(edges):
+        return []
+    direction = vertices[edges[:, 1]] - vertices[edges[:, 0]]
+    length = np.hypot(direction[:, 0], direction[:, 1])
+    unit = direction / np.where(length > 0, length, 1.0)[:, None]
+    at: dict[int, list[int]] = defaultdict(list)
+    for e, (a, b) in enumerate(edges.tolist()):
+        at[a].append(e)
+        at[b].append(e)
+    ends = edges.tolist()
+    used = np.zeros(len(edges), bool)
+    out = []
+    for first in range(len(edges)):
+        if used[first]:
+            continue
+        used[first] = True
+        forward = _walk(ends, unit, at, used, first, ends[first][1], 1.0)
+        backward = _walk(ends, unit, at, used, first, ends[first][0], -1.0)
+        chain = backward[::-1] + [ends[first][0], ends[first][1]] + forward
+        out.append(vertices[chain])
+    return out
+
+
+def _walk(ends, unit, at, used, edge: int, vertex: int, sign: float) -> list[int]:
+    """Vertices reached from ``vertex`` (the end of ``edge``, run in direction ``sign``)."""
+    path = []
+    heading = unit[edge] * sign
+    while True:
+        best, best_cos, best_sign = -1, STRAIGHT, 1.0
+        for e in at[vertex]:
+            if used[e]:
+                continue
+            s = 1.0 if ends[e][0] == vertex else -1.0
+            c = float(unit[e] @ heading) * s
+            if c > best_cos:
+                best, best_cos, best_sign = e, c, s
+        if best < 0:
+            return path
+        used[best] = True
+        vertex = ends[best][1] if best_sign > 0 else ends[best][0]
+        heading = unit[best] * best_sign
+        path.append(vertex)
