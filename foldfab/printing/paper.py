@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from foldfab.devices.checks import SHEETS
 from foldfab.errors import FoldfabError
+from foldfab.printing.tiles import FOOTER, HEADER
 
 PAPER_MIN = 80.0
 """mm: the smallest paper side, room for the page's labels and a tile of pattern."""
@@ -15,6 +16,9 @@ PAPER_MAX = 5000.0
 """mm: the largest paper side (PDF readers refuse pages over 200 inches, 5080 mm)."""
 MARGIN_MAX = 50.0
 """mm: the widest margin; printers leave 3-6 mm unprinted, so 10 mm is the default."""
+MIN_AREA = (60.0, 40.0)
+"""mm: the least room a page must leave inside its margins (across its shorter side) for the
+50 mm scale bar, and for the pattern between the header and footer bands."""
 OVERLAP_MAX = 30.0
 """mm: the widest overlap between neighbouring tiles."""
 
@@ -65,8 +69,10 @@ def check_options(options: PrintOptions) -> None:
         raise FoldfabError(f"--margin {options.margin:g}: expected a number of mm from 0 to {MARGIN_MAX:g}")
     if not (math.isfinite(options.overlap) and 0 <= options.overlap <= OVERLAP_MAX):
         raise FoldfabError(f"--overlap {options.overlap:g}: expected a number of mm from 0 to {OVERLAP_MAX:g}")
-    if min(w, h) - 2 * options.margin < PAPER_MIN / 2:
-        raise FoldfabError(f"--margin {options.margin:g}: leaves less than {PAPER_MIN / 2:g} mm of the "
-                           f"{w:g} x {h:g} mm paper to print on; use a smaller margin")
+    width, height = min(w, h) - 2 * options.margin, min(w, h) - 2 * options.margin - HEADER - FOOTER
+    if width < MIN_AREA[0] or height < MIN_AREA[1]:
+        raise FoldfabError(f"--margin {options.margin:g}: leaves less than {MIN_AREA[0]:g} x {MIN_AREA[1]:g} mm of the "
+                           f"{w:g} x {h:g} mm paper for the pattern and the scale bar; use a smaller margin or "
+                           "larger --paper")
     if not (math.isfinite(options.scale) and options.scale > 0):
         raise FoldfabError(f"--scale {options.scale:g}: expected a number > 0")

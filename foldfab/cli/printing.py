@@ -1,5 +1,8 @@
 """``foldfab print``: a job's crease pattern as a printable template (PDF, or SVG pages) at
-true size, tiled across pages of the chosen paper, for folding by hand."""
+true size, tiled across pages of the chosen paper, for folding by hand.
+
+Named ``printing`` rather than ``print``: a submodule becomes an attribute of its package,
+so ``foldfab/cli/print.py`` would shadow the built-in ``print`` inside ``foldfab.cli``."""
 
 from __future__ import annotations
 
