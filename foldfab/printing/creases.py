@@ -65,3 +65,29 @@ def _walk(ends, unit, at, used, edge: int, vertex: int, sign: float) -> list[int
         vertex = ends[best][1] if best_sign > 0 else ends[best][0]
         heading = unit[best] * best_sign
         path.append(vertex)
+
+
+def arc_lengths(line: np.ndarray) -> np.ndarray:
+    """Cumulative length (n,) along a polyline from its first point."""
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))])
+
+
+def trim(line: np.ndarray, arc: np.ndarray, window: tuple[float, float, float, float], period: float) -> np.ndarray:
+    """The part of ``line`` (with :func:`arc_lengths` ``arc``) that may reach into ``window``,
+    starting at a whole number of dash ``period`` from its start, so that a dash pattern drawn
+    on the part falls exactly where it falls on the whole line (0: no dash, cut at a vertex)."""
+    x0, y0, x1, y1 = window
+    a, b = line[:-1], line[1:]
+    reach = ((np.minimum(a[:, 0], b[:, 0]) <= x1) & (np.maximum(a[:, 0], b[:, 0]) >= x0)
+             & (np.minimum(a[:, 1], b[:, 1]) <= y1) & (np.maximum(a[:, 1], b[:, 1]) >= y0))
+    hits = np.nonzero(reach)[0]
+    if not len(hits):
+        return line[:0]
+    first, last = int(hits[0]), int(hits[-1]) + 1
+    if period <= 0 or first == 0:
+        return line[first:last + 1]
+    start = np.floor(arc[first] / period) * period
+    k = int(np.searchsorted(arc, start, side="right")) - 1  # the segment holding the new start
+    span = arc[k + 1] - arc[k]
+    point = line[k] + (line[k + 1] - line[k]) * ((start - arc[k]) / span if span > 0 else 0.0)
+    return np.concatenate([point[None], line[k + 1:last + 1]])

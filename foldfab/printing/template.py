@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from foldfab.geometry.crease_pattern import CreasePattern
-from foldfab.printing.creases import crease_polylines
+from foldfab.printing.creases import arc_lengths, crease_polylines, trim
 from foldfab.printing.marks import alignment_marks, crop_marks, legend, scale_bar, tile_map
 from foldfab.printing.model_view import model_view
 from foldfab.printing.page import Lines, Page, Shape, Text, rect
@@ -75,12 +75,13 @@ def lay_out(pieces: list[CreasePattern], name: str, model: CreasePattern, closed
     for index, (cp, tiling) in enumerate(zip(pieces, tilings)):
         polylines = crease_polylines(cp, tuple(styles))
         boxes = {kind: _boxes(lines) for kind, lines in polylines.items()}
+        arcs: dict[tuple[str, int], np.ndarray] = {}  # arc lengths of the polylines trimmed, found as needed
         piece = f"piece {index + 1} of {len(pieces)}  ·  " if len(pieces) > 1 else ""
         info = _info(cp, options.scale)
         for row in range(tiling.rows):
             for col in range(tiling.cols):
                 page = Page(*paper)
-                _tile(page, tiling, row, col, polylines, boxes, styles)
+                _tile(page, tiling, row, col, polylines, arcs, boxes, styles)
                 number = len(pages) + 1
                 _header(page, options.margin, f"{name}  ·  {piece}row {row + 1} of {tiling.rows}, "
                                               f"column {col + 1} of {tiling.cols}", f"page {number} of {total}")
@@ -98,8 +99,10 @@ def _boxes(polylines: list[np.ndarray]) -> np.ndarray:
 
 
 def _tile(page: Page, tiling: Tiling, row: int, col: int, polylines: dict[str, list[np.ndarray]],
-          boxes: dict[str, np.ndarray], styles: dict[str, LineStyle]) -> None:
-    """The pattern's polylines that reach into tile (row, col), clipped to its area; the marks."""
+          arcs: dict[tuple[str, int], np.ndarray], boxes: dict[str, np.ndarray], styles: dict[str, LineStyle]) -> None:
+    """The parts of the pattern's polylines that reach into tile (row, col), clipped to its
+    area (a line element runs the whole length of the pattern: only its part near the tile is
+    drawn, with its dashes where they fall on the whole line); the marks."""
     wx0, wy0, wx1, wy1 = tiling.window(row, col)
     for kind in ("F", "V", "M", "B"):  # the cut outline last, on top
         if kind not in styles:
@@ -109,10 +112,25 @@ def _tile(page: Page, tiling: Tiling, row: int, col: int, polylines: dict[str, l
             if len(box) else []
         if len(inside):
             style = styles[kind]
-            page.items.append(Lines([tiling.to_page(polylines[kind][i], row, col) for i in inside.tolist()],
-                                    style.color, style.width, style.dash, clip=tiling.area))
+            period = sum(style.dash) / tiling.scale
+            within = (box[inside, 0] >= wx0) & (box[inside, 2] <= wx1) & (box[inside, 1] >= wy0) & (box[inside, 3] <= wy1)
+            lines = polylines[kind]
+            parts = [lines[i] if whole or len(lines[i]) == 2 else
+                     trim(lines[i], _arc(arcs, lines, kind, i), (wx0, wy0, wx1, wy1), period)
+                     for i, whole in zip(inside.tolist(), within.tolist())]
+            parts = [part for part in parts if len(part) > 1]
+            if parts:
+                moved = tiling.to_page(np.concatenate(parts), row, col)
+                parts = np.split(moved, np.cumsum([len(part) for part in parts[:-1]]))
+                page.items.append(Lines(parts, style.color, style.width, style.dash, clip=tiling.area))
     page.items.append(crop_marks(tiling))
     page.items.append(alignment_marks(tiling, row, col))
+
+
+def _arc(arcs: dict[tuple[str, int], np.ndarray], lines: list[np.ndarray], kind: str, i: int) -> np.ndarray:
+    if (kind, i) not in arcs:
+        arcs[kind, i] = arc_lengths(lines[i])
+    return arcs[kind, i]
 
 
 def _info(cp: CreasePattern, scale: float) -> str:
