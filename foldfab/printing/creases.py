@@ -27,43 +27,44 @@ def _chain(vertices: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
         return []
     direction = vertices[edges[:, 1]] - vertices[edges[:, 0]]
     length = np.hypot(direction[:, 0], direction[:, 1])
-    unit = direction / np.where(length > 0, length, 1.0)[:, None]
+    unit = (direction / np.where(length > 0, length, 1.0)[:, None]).tolist()
     at: dict[int, list[int]] = defaultdict(list)
-    for e, (a, b) in enumerate(edges.tolist()):
+    ends = edges.tolist()
+    for e, (a, b) in enumerate(ends):
         at[a].append(e)
         at[b].append(e)
-    ends = edges.tolist()
-    used = np.zeros(len(edges), bool)
+    used = [False] * len(ends)
     out = []
-    for first in range(len(edges)):
+    for first in range(len(ends)):
         if used[first]:
             continue
         used[first] = True
-        forward = _walk(ends, unit, at, used, first, ends[first][1], 1.0)
-        backward = _walk(ends, unit, at, used, first, ends[first][0], -1.0)
-        chain = backward[::-1] + [ends[first][0], ends[first][1]] + forward
-        out.append(vertices[chain])
-    return out
+        a, b = ends[first]
+        forward = _walk(ends, unit, at, used, first, b, 1.0)
+        backward = _walk(ends, unit, at, used, first, a, -1.0)
+        out.append(backward[::-1] + [a, b] + forward)
+    return [vertices[chain] for chain in out]
 
 
-def _walk(ends, unit, at, used, edge: int, vertex: int, sign: float) -> list[int]:
+def _walk(ends: list, unit: list, at: dict, used: list, edge: int, vertex: int, sign: float) -> list[int]:
     """Vertices reached from ``vertex`` (the end of ``edge``, run in direction ``sign``)."""
     path = []
-    heading = unit[edge] * sign
+    hx, hy = unit[edge][0] * sign, unit[edge][1] * sign
     while True:
         best, best_cos, best_sign = -1, STRAIGHT, 1.0
         for e in at[vertex]:
             if used[e]:
                 continue
             s = 1.0 if ends[e][0] == vertex else -1.0
-            c = float(unit[e] @ heading) * s
+            ux, uy = unit[e]
+            c = (ux * hx + uy * hy) * s
             if c > best_cos:
                 best, best_cos, best_sign = e, c, s
         if best < 0:
             return path
         used[best] = True
         vertex = ends[best][1] if best_sign > 0 else ends[best][0]
-        heading = unit[best] * best_sign
+        hx, hy = unit[best][0] * best_sign, unit[best][1] * best_sign
         path.append(vertex)
 
 
