@@ -185,3 +185,33 @@ def test_job_scale_is_printed_and_a_larger_scale_takes_more_pages(tmp_path, caps
     assert big["scale"] == 2.5 and small["scale"] == 1
     assert big["pages"] > small["pages"]
     assert pdfinfo(tmp_path / "big.pdf")[0] == big["pages"]
+
+
+def test_flat_creases_only_with_flat(tmp_path, capsys):
+    vase = HEXAGON.parent / "vase-svg.toml"
+    ns = "{http://www.w3.org/2000/svg}"
+    strokes = {}
+    for flag in ([], ["--flat"]):
+        folder = tmp_path / ("flat" if flag else "plain")
+        folder.mkdir()
+        rc, out, err = run(capsys, "print", vase, "-o", folder / "t.svg", *flag)
+        assert rc == 0, err
+        strokes[bool(flag)] = {p.get("stroke") for p in ET.parse(folder / "t-2.svg").getroot().iter(f"{ns}path")}
+    assert STYLES["F"].color in strokes[True] and STYLES["F"].color not in strokes[False]
+    assert STYLES["V"].color in strokes[False]
+
+
+@pytest.mark.parametrize("job, note", [
+    (HEXAGON, "The glue tab is the strip at the right end"),
+    (HEXAGON.parent / "star.toml", "The two ends of the pattern meet when folded"),
+])
+def test_first_page_says_where_the_glue_tab_goes(job, note, tmp_path):
+    template, [out] = write_template(load_design(job), tmp_path / "t.pdf", options())
+    assert note in " ".join(pdftotext(out, 1).split())
+
+
+def test_svg_pages_are_written_all_or_none(tmp_path, capsys):
+    (tmp_path / "t-2.svg").mkdir()  # the second page cannot be written
+    rc, out, err = run(capsys, "print", HEXAGON, "-o", tmp_path / "t.svg")
+    assert rc == 2 and "-o" in err and "cannot write" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t-2.svg"]
