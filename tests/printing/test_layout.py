@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from foldfab.design import load_design
-from foldfab.printing.creases import STRAIGHT, crease_polylines
+from foldfab.printing.creases import STRAIGHT, arc_lengths, crease_polylines, trim
 from foldfab.printing.marks import alignment_marks
 from foldfab.printing.model_view import MAX_VIEW_FACES, grid_ids, model_view
 from foldfab.printing.page import Text
@@ -126,3 +126,33 @@ def test_pieces_are_laid_out_each_on_its_own_pages():
     assert template.page_of(1, 0, 0) == template.page_of(0, 0, template.tilings[0].cols - 1) + 1
     header = [i.text for i in template.pages[template.page_of(1, 0, 0)].items if isinstance(i, Text)]
     assert any("piece 2 of 2" in text for text in header)
+
+
+@settings(max_examples=200, deadline=None)
+@given(points=st.lists(st.tuples(st.floats(-100, 100), st.floats(-100, 100)), min_size=2, max_size=12),
+       window=st.tuples(st.floats(-120, 100), st.floats(-120, 100), st.floats(1, 100), st.floats(1, 100)),
+       period=st.sampled_from([0.0, 4.5, 5.6]))
+def test_trim_keeps_every_segment_near_the_window_and_the_dash_phase(points, window, period):
+    line = np.array(points, float)
+    arc = arc_lengths(line)
+    box = (window[0], window[1], window[0] + window[2], window[1] + window[3])
+    part = trim(line, arc, box, period)
+    a, b = line[:-1], line[1:]
+    reach = ((np.minimum(a[:, 0], b[:, 0]) <= box[2]) & (np.maximum(a[:, 0], b[:, 0]) >= box[0])
+             & (np.minimum(a[:, 1], b[:, 1]) <= box[3]) & (np.maximum(a[:, 1], b[:, 1]) >= box[1]))
+    if not reach.any():
+        assert len(part) == 0
+        return
+    # the part is the line from some point on it: every vertex of a reaching segment is in it
+    for i in np.nonzero(reach)[0]:
+        for p in (line[i], line[i + 1]):
+            assert np.any(np.all(np.isclose(part, p, atol=1e-9), axis=1))
+    # it starts on some segment k and follows the line from vertex k + 1 on, at a whole number of
+    # periods from the line's start (or at a vertex, without dashes)
+    start, n = part[0], len(part)
+    onto = [k for k in range(len(line) - 1)
+            if np.hypot(*(start - line[k])) + np.hypot(*(line[k + 1] - start)) <= np.hypot(*(line[k + 1] - line[k])) + 1e-7
+            and k + n <= len(line) and np.allclose(part[1:], line[k + 1:k + n], atol=1e-9)]
+    assert onto
+    whole = [abs(v - round(v)) < 1e-6 for k in onto for v in [(arc[k] + np.hypot(*(start - line[k]))) / (period or 1.0)]]
+    assert any(whole) or period == 0

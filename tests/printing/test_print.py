@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from foldfab.design import load_design
+from foldfab.job import load_job
 from foldfab.printing.creases import crease_polylines
 from foldfab.printing.marks import SCALE_BAR, SCALE_BAR_HEIGHT
 from foldfab.printing.output import write_template
@@ -37,6 +38,8 @@ def test_every_job_prints_a_pdf_pdfinfo_reads(job, tmp_path, capsys):
     import json
 
     info = json.loads(stdout)
+    job_scale = load_job(job).fabrication.get("scale", 1.0)
+    assert info["scale"] == (1.0 if job_scale == "fit" else job_scale)  # a plotter's "fit" prints at true size
     pages, sizes = pdfinfo(out)
     rows, cols = info["tiles"][0]
     assert pages == info["pages"] == 1 + rows * cols
