@@ -27,6 +27,7 @@ STAGES: list[tuple[str, tuple[str, ...]]] = [
     ("formats", ("foldfab.formats",)),                # design -> FOLD, SVG, ORIPA, meshes
     ("devices", ("foldfab.devices",)),                # plotter profiles
     ("fabrication", ("foldfab.fabrication",)),        # design + device + [fabrication] -> plot plan
+    ("printing", ("foldfab.printing",)),              # design -> printable template (PDF, SVG pages)
     ("programs", ("foldfab.programs", "foldfab.program", "foldfab.interpret")),  # plot plan -> program, read back
     ("fabricate", ("foldfab.fabricate",)),            # design -> program: the one entry point
     ("sim", ("foldfab.sim",)),                        # simulated plotters

@@ -25,12 +25,12 @@ def test_readme_has_exactly_two_commands():
 
 def test_the_test_command_sets_up_what_the_tests_need():
     """On a fresh machine the README's test command alone must pass: it installs the Debian
-    packages the tests use (the HPGL reader, the browser), the virtual environment and the test
+    packages the tests use (the HPGL reader, the PDF reader, the browser), the virtual environment and the test
     extra, then runs pytest."""
     script = ROOT / _commands()[1].split()[0]
     assert script.is_file() and script.stat().st_mode & 0o111
     text = script.read_text()
-    for need in ("hp2xx", "chromium", "libatomic1", "python3-venv", "apt-get install", 'pip install -q -e ".[test]"',
+    for need in ("hp2xx", "chromium", "libatomic1", "poppler-utils", "python3-venv", "apt-get install", 'pip install -q -e ".[test]"',
                  "-m pytest"):
         assert need in text, need
 

@@ -1,7 +1,7 @@
 """The ``foldfab`` command line: parses arguments, calls the library, prints.
 
 Every command is a thin layer over library functions, in one module per command group:
-:mod:`~foldfab.cli.design` (design, export, preview), :mod:`~foldfab.cli.plot`,
+:mod:`~foldfab.cli.design` (design, export, preview), :mod:`~foldfab.cli.plot`, :mod:`~foldfab.cli.printing`,
 :mod:`~foldfab.cli.queue`, :mod:`~foldfab.cli.sim` and :mod:`~foldfab.cli.studio`, each adding
 its subcommands to the parser built here; what several share is in :mod:`~foldfab.cli.common`.
 Heavy modules (numpy, trimesh, vpype) are imported inside the command functions so
@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from foldfab.cli import design, devices, plot, queue, sim, studio
+from foldfab.cli import design, devices, plot, printing, queue, sim, studio
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     design.add_commands(sub)
     devices.add_commands(sub)
     plot.add_commands(sub)
+    printing.add_commands(sub)
     queue.add_commands(sub)
     sim.add_commands(sub)
     studio.add_commands(sub)
