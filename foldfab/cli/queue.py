@@ -11,9 +11,9 @@ from foldfab.cli.common import _add_max_faces, _add_scale_arg, _fabricate, _int_
 
 
 def _queue_store(args: argparse.Namespace):
-    from foldfab.queue.sqlite import SqliteQueueStore, default_queue_path
+    from foldfab.queue.location import open_queue
 
-    return SqliteQueueStore(args.queue or default_queue_path(), wait=args.wait)
+    return open_queue(args.queue, wait=args.wait)
 
 
 def _when(seconds: float) -> str:
@@ -266,12 +266,13 @@ def add_commands(sub) -> None:
     """``foldfab queue ...``: the persistent job queue."""
     from foldfab.queue.records import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, MAX_COPIES, MIN_LEASE,
                                        PRIORITIES, STATES)
-    from foldfab.queue.sqlite import MAX_JOB_ID
+    from foldfab.queue.sqlstore import MAX_JOB_ID
     from foldfab.queue.store import DEFAULT_WAIT
 
     job_id = _int_from(1, MAX_JOB_ID, "expected a job id")
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--queue", metavar="PATH", help="queue file (default: $FOLDFAB_QUEUE, else "
+    common.add_argument("--queue", metavar="PATH|URL", help="queue: an SQLite file, or a PostgreSQL server "
+                        "postgresql://user@host/db shared by several hosts (default: $FOLDFAB_QUEUE, else "
                         "$XDG_DATA_HOME/foldfab/queue.sqlite3, default ~/.local/share)")
     common.add_argument("--wait", type=_seconds_from(0, "expected 0 seconds or more"), default=DEFAULT_WAIT,
                         metavar="SECONDS",

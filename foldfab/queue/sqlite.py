@@ -17,7 +17,7 @@ from typing import Iterator, Sequence
 
 from foldfab.errors import FoldfabError
 from foldfab.queue.schema import migrations
-from foldfab.queue.sqlstore import MAX_JOB_ID, Queries, SqlQueueStore
+from foldfab.queue.sqlstore import MAX_JOB_ID, Queries, SqlQueueStore, pid_alive
 from foldfab.queue.store import DEFAULT_WAIT, QueueBusy
 from foldfab.xdg import foldfab_dir
 
@@ -36,21 +36,6 @@ MIGRATIONS: tuple[str, ...] = tuple(";\n".join(step) for step in STATEMENTS)
 """Per schema version, the script that brings the version before it there (:mod:`foldfab.queue.schema`)."""
 SCHEMA_VERSION = len(MIGRATIONS)
 QUERIES = Queries("NOT foldfab_pid_alive(j.worker_pid)", "j.id NOT IN (SELECT value FROM json_each(:exclude))")
-
-
-def _pid_alive(pid: int) -> bool:
-    """Whether process ``pid`` runs on this machine (a zombie, killed but not yet reaped, does not)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # it exists, under another user
-        pass
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as stat:
-            return stat.read().rsplit(b")", 1)[1].split()[0] != b"Z"
-    except (OSError, IndexError):  # no /proc (not Linux): trust kill
-        return True
 
 
 class SqliteQueueStore(SqlQueueStore):
@@ -79,7 +64,7 @@ class SqliteQueueStore(SqlQueueStore):
                                    "choose another with --queue or FOLDFAB_QUEUE") from None
             db = sqlite3.connect(self.path, timeout=self.wait, isolation_level=None, check_same_thread=False)
             try:
-                db.create_function("foldfab_pid_alive", 1, _pid_alive)
+                db.create_function("foldfab_pid_alive", 1, pid_alive)
                 db.execute(f"PRAGMA busy_timeout = {int(self.wait * 1000)}")
                 db.execute("PRAGMA foreign_keys = ON")
                 self._migrate(db)

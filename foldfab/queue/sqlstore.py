@@ -10,6 +10,7 @@ Standard library only (``foldfab queue list`` imports it).
 
 from __future__ import annotations
 
+import os
 import socket
 import threading
 import time
@@ -371,6 +372,21 @@ class SqlQueueStore:
             self._event(db, job_id, state, message)
             self._notify(db)  # the plotter is free
             return True
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` runs on this machine (a zombie, killed but not yet reaped, does not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # it exists, under another user
+        pass
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat:
+            return stat.read().rsplit(b")", 1)[1].split()[0] != b"Z"
+    except (OSError, IndexError):  # no /proc (not Linux): trust kill
+        return True
 
 
 def _job_id(job_id: int) -> int:

@@ -23,10 +23,12 @@ from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.program import PauseMark, Program
 from foldfab.queue import NewJob, SqliteQueueStore, WorkerId, make_snapshot
+from foldfab.queue.location import open_queue
 from foldfab.queue.snapshot import load_snapshot_device
 from foldfab.queue.sqlite import MIGRATIONS, SCHEMA_VERSION
 from helpers import HEXAGON, ROOT
 from helpers.cli import run as run_cli
+from helpers.queues import raw_sql
 
 
 def snapshot(text: str = "IN;SP1;PU0,0;PD400,400;SP0;", name: str = "test job", pauses=()):
@@ -36,15 +38,8 @@ def snapshot(text: str = "IN;SP1;PU0,0;PD400,400;SP0;", name: str = "test job", 
     return make_snapshot(Path("job.toml"), "[design]\n", name, device, program)
 
 
-def fill(store: SqliteQueueStore, ports: list[str], per_port: int) -> list[int]:
+def fill(store, ports: list[str], per_port: int) -> list[int]:
     return store.add([NewJob(snapshot(), port, 0, per_port) for port in ports])
-
-
-@pytest.fixture()
-def store(tmp_path):
-    store = SqliteQueueStore(tmp_path / "queue.sqlite3", wait=2.0)
-    yield store
-    store.close()
 
 
 # --- states and transitions ------------------------------------------------------------------
@@ -66,7 +61,7 @@ def test_add_list_and_snapshot_round_trip(store):
 def test_a_queued_job_knows_its_length_before_it_runs(store, capsys):
     """Issue 18: ``queue list --json`` showed drawn_total_mm 0.0 for a queued job whose length is known at add."""
     store.add([NewJob(snapshot("IN;SP1;PU0,0;PD400,300;PU0,0;PD0,400;SP0;"), "sim://a", 0, 2)])
-    code, out, _ = run_cli(capsys, "queue", "list", "--json", "--queue", str(store.path))
+    code, out, _ = run_cli(capsys, "queue", "list", "--json", "--queue", store.location)
     listed = json.loads(out)
     assert code == 0 and [j["state"] for j in listed] == ["queued"] * 2
     assert [j["drawn_total_mm"] for j in listed] == [pytest.approx(12.5 + 10.0)] * 2  # 40 units/mm: 500 + 400 units
@@ -182,9 +177,8 @@ def test_continue_retry_remove_clear(store):
         store.events(2) or store.job(2)
     assert store.snapshot(3)  # the shared snapshot stays while a copy uses it
     store.remove(3)
-    with sqlite3.connect(store.path) as db:
-        assert db.execute("SELECT count(*) FROM snapshots").fetchone() == (0,)
-        assert db.execute("SELECT count(*) FROM events").fetchone() == (0,)
+    assert raw_sql(store, "SELECT count(*) FROM snapshots") == [(0,)]
+    assert raw_sql(store, "SELECT count(*) FROM events") == [(0,)]
 
 
 def test_worker_loses_a_job_it_no_longer_holds(store):
@@ -246,12 +240,17 @@ def test_cancel_requested_then_worker_dies_ends_cancelled(store):
     assert store.job(claim.job.id).state == "cancelled"
 
 
+def where(store) -> str:
+    """What --queue and open_queue take for ``store``."""
+    return getattr(store, "url", None) or str(store.path)
+
+
 # --- racing workers ---------------------------------------------------------------------------
 
 
-def _drain(path: str, results, ports_in_use, lock, delay: float = 0.0) -> None:
+def _drain(location: str, results, ports_in_use, lock, delay: float = 0.0) -> None:
     """A minimal worker: claim, 'plot', finish, until nothing is left; record what it ran."""
-    store = SqliteQueueStore(path, wait=30)
+    store = open_queue(location, wait=30)
     worker = WorkerId.current()
     while True:
         claim = store.claim(worker, 30)
@@ -271,12 +270,13 @@ def _drain(path: str, results, ports_in_use, lock, delay: float = 0.0) -> None:
     store.close()
 
 
+@pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")
 def test_threads_racing_run_every_job_exactly_once(store):
     ids = fill(store, [f"sim://p{i}" for i in range(5)], 12)
     results: list[int] = []
     in_use: list[str] = []
     lock = threading.Lock()
-    threads = [threading.Thread(target=_drain, args=(str(store.path), results, in_use, lock, 0.002))
+    threads = [threading.Thread(target=_drain, args=(where(store), results, in_use, lock, 0.002))
                for _ in range(8)]
     for thread in threads:
         thread.start()
@@ -292,7 +292,7 @@ def test_processes_racing_run_every_job_exactly_once(store):
     context = multiprocessing.get_context("spawn")
     with context.Manager() as manager:
         results, in_use, lock = manager.list(), manager.list(), manager.Lock()
-        processes = [context.Process(target=_drain, args=(str(store.path), results, in_use, lock, 0.002))
+        processes = [context.Process(target=_drain, args=(where(store), results, in_use, lock, 0.002))
                      for _ in range(4)]
         for process in processes:
             process.start()
@@ -352,7 +352,8 @@ def test_newer_schema_and_foreign_files_are_refused(tmp_path):
         SqliteQueueStore(other).jobs()
 
 
-def test_locked_queue_waits_then_says_so_and_loses_nothing(store, capsys):
+def test_locked_queue_waits_then_says_so_and_loses_nothing(sqlite_store, capsys):
+    store = sqlite_store
     fill(store, ["sim://a"], 2)
     blocker = sqlite3.connect(store.path, isolation_level=None)
     blocker.execute("BEGIN IMMEDIATE")
@@ -429,7 +430,8 @@ def test_damaged_queue_file_is_reported_and_left_alone(tmp_path, capsys):
     assert path.read_bytes() == before
 
 
-def test_damaged_pages_inside_a_queue_are_reported(store):
+def test_damaged_pages_inside_a_queue_are_reported(sqlite_store):
+    store = sqlite_store
     fill(store, ["sim://a"], 200)
     store.close()
     with sqlite3.connect(store.path) as db:
@@ -445,8 +447,7 @@ def test_damaged_pages_inside_a_queue_are_reported(store):
 
 def test_tampered_program_is_claimed_for_the_worker_to_fail(store):
     fill(store, ["sim://a", "sim://b"], 1)
-    with sqlite3.connect(store.path) as db:
-        db.execute("UPDATE snapshots SET program = 'IN;PD0,0;' WHERE id = 1")
+    raw_sql(store, "UPDATE snapshots SET program = 'IN;PD0,0;' WHERE id = 1")
     worker = WorkerId.current()
     claim = store.claim(worker, 30)
     assert claim.job.id == 1 and claim.stored is None and "does not match its SHA-256" in claim.damage
