@@ -2,12 +2,14 @@
 
 Takes fabricated jobs (program, device, sheet) as snapshots (:mod:`~foldfab.queue.snapshot`) and
 gives them to workers one plotter at a time (:mod:`~foldfab.queue.records`: states and records;
-:mod:`~foldfab.queue.store`: the store interface; :mod:`~foldfab.queue.sqlite`: SQLite), which stream
+:mod:`~foldfab.queue.store`: the store interface; :mod:`~foldfab.queue.sqlite`: SQLite;
+:mod:`~foldfab.queue.postgres`: a PostgreSQL server; :func:`open_queue` chooses), which stream
 them with leases and heartbeats (:mod:`~foldfab.queue.worker`) so that a killed process loses nothing.
 """
 
+from foldfab.queue.location import open_queue
 from foldfab.queue.records import NewJob, WorkerId
 from foldfab.queue.snapshot import make_snapshot
 from foldfab.queue.sqlite import SqliteQueueStore, default_queue_path
 
-__all__ = ["NewJob", "SqliteQueueStore", "WorkerId", "default_queue_path", "make_snapshot"]
+__all__ = ["NewJob", "SqliteQueueStore", "WorkerId", "default_queue_path", "make_snapshot", "open_queue"]

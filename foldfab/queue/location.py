@@ -12,8 +12,9 @@ from foldfab.queue.store import DEFAULT_WAIT, QueueStore
 
 
 def queue_location(location: str | os.PathLike | None = None) -> str:
-    """``location``, else ``$FOLDFAB_QUEUE``, else the default SQLite file."""
-    return str(location) if location else str(default_queue_path())
+    """``location``, else ``$FOLDFAB_QUEUE``, else the default SQLite file (a URL kept as given: a
+    path would fold its ``//``)."""
+    return str(location or os.environ.get("FOLDFAB_QUEUE") or default_queue_path())
 
 
 def open_queue(location: str | os.PathLike | None = None, wait: float = DEFAULT_WAIT) -> QueueStore:

@@ -139,7 +139,8 @@ class WorkerOptions:
     heartbeat: float = DEFAULT_HEARTBEAT
     """Longest time between two heartbeats (progress is also saved when a stroke is done)."""
     poll: float = 2.0
-    """follow: seconds between looks at an empty queue; also how often a pause checks the queue."""
+    """follow: most seconds between looks at an empty queue (a PostgreSQL queue wakes the worker at
+    once when a job may have become runnable); also how often a pause checks the queue."""
     retry_after: float = 60.0
     """follow: seconds before this worker resumes a job it saw interrupted."""
 
@@ -314,7 +315,7 @@ class Worker:
             if claim is None:
                 if self.options.mode != "follow":
                     return self._ended(summary)
-                self.stopping.wait(self.options.poll)
+                self.store.wait_for_work(self.options.poll, self.stopping)
                 continue
             state = self.run_job(claim)
             summary.add(claim.job.id, state)

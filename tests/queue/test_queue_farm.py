@@ -1,0 +1,116 @@
+"""A plotter farm on one PostgreSQL queue: workers woken by NOTIFY, hosts (processes) with their own
+simulated plotters sharing the jobs, a host killed mid-run and started again."""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from foldfab.devices import load_device
+from foldfab.programs.program import Program
+from foldfab.queue import NewJob, WorkerId, make_snapshot
+from foldfab.queue.worker import Worker, WorkerOptions
+from helpers import ROOT
+
+HPGL = "IN;SP1;PU0,0;PD400,0,400,400,0,400,0,0;PU800,0;PD1200,0,1200,400;SP0;"
+
+
+def snapshot(device: str):
+    profile = load_device(device)
+    return make_snapshot(Path("farm.toml"), "[design]\n", f"farm job for {device}", profile,
+                         Program(HPGL, "hpgl", profile.name, (), ()))
+
+
+class Quiet:
+    """A worker UI that shows nothing."""
+
+    def job_started(self, job, note): pass
+    def progress(self, event): pass
+    def paused(self, job, message): pass
+    def answer(self, timeout): return None
+    def job_ended(self, job, state, message): pass
+
+
+def wait_for(condition, timeout: float = 120.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)  # poll interval
+
+
+def test_a_waiting_worker_wakes_at_once_for_a_released_plotter_and_a_new_job(postgres_store):
+    """The worker polls only every hour here: what wakes it is the queue's NOTIFY."""
+    store = postgres_store
+    port = "sim://hp7475a?time=instant"
+    store.add([NewJob(snapshot("hp7475a"), port, 0, 2)])
+    other = WorkerId(WorkerId.current().host, os.getpid(), "another-worker")
+    assert store.claim(other, 3600).job.id == 1  # the plotter is busy with another worker's job
+    waits = []
+    wait = store.wait_for_work
+    store.wait_for_work = lambda timeout, stop: waits.append(timeout) or wait(timeout, stop)
+    follower = Worker(store, Quiet(), WorkerOptions(mode="follow", poll=3600.0))
+    thread = threading.Thread(target=follower.run, daemon=True)
+    thread.start()
+    wait_for(lambda: len(waits) >= 2)  # listening, found nothing runnable, waiting
+    assert store.job(2).state == "queued"
+    store.finish(1, other, "done", "drawn")  # the plotter is released
+    wait_for(lambda: store.job(2).state == "done")
+    wait_for(lambda: len(waits) >= 3)
+    store.add([NewJob(snapshot("hp7475a"), port)])  # a new job
+    wait_for(lambda: store.job(3).state == "done")
+    assert [f"by worker {follower.id}" in store.events(i)[1].message for i in (2, 3)] == [True, True]
+    follower.stop()
+    thread.join(10)
+    assert not thread.is_alive()
+
+
+def host(url: str, port: str) -> subprocess.Popen:
+    """One host of the farm: ``foldfab queue run`` for its plotter, in its own process."""
+    return subprocess.Popen([sys.executable, "-m", "foldfab", "queue", "run", "--port", port, "--lease", "30"],
+                            env=dict(os.environ, FOLDFAB_QUEUE=url), cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+FARM = {"a": "hp7475a", "b": "graphtec-ce6000", "c": "hp7475a"}
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_three_hosts_share_one_queue_and_a_killed_host_resumes(postgres_store, seed):
+    """60 jobs for three plotters on three hosts: every job done exactly once on its plotter, the
+    job of the host killed at a random moment resumed when it comes back, nothing lost."""
+    store, rng = postgres_store, random.Random(seed)
+    ports = {name: f"sim://{device}?time=instant&session={name}" for name, device in FARM.items()}
+    ids = store.add([NewJob(snapshot(FARM[name]), ports[name], rng.randint(0, 2), 20) for name in FARM])
+    assert len(ids) == 60
+    hosts = {name: host(store.url, port) for name, port in ports.items()}
+    victim_done, running = rng.randint(1, 15), []
+
+    def mid_job() -> bool:  # a random number of jobs done on host c, and one running there
+        on_c = [j for j in store.jobs() if j.port == ports["c"]]
+        running[:] = [j.id for j in on_c if j.state == "running"]
+        return sum(j.state == "done" for j in on_c) >= victim_done and bool(running)
+    wait_for(mid_job)
+    hosts["c"].send_signal(signal.SIGKILL)
+    hosts["c"].wait(30)
+    hosts["c"] = host(store.url, ports["c"])  # the host comes back
+    for name, process in hosts.items():
+        out, err = process.communicate(timeout=300)
+        assert process.returncode == 0, (name, out, err)
+    jobs = store.jobs()
+    assert [j.state for j in jobs] == ["done"] * 60
+    for job in jobs:
+        kinds = [e.kind for e in store.events(job.id)]
+        assert kinds.count("done") == 1
+        assert job.device == FARM[job.port.split("session=")[1]]
+        assert job.acked_bytes == job.program_bytes
+        # at most one interruption (the killed host's job), then a resume on the same plotter
+        assert kinds in (["queued", "started", "done"], ["queued", "started", "interrupted", "started", "done"])
+        assert job.id in running or kinds == ["queued", "started", "done"]
