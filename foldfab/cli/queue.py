@@ -146,6 +146,22 @@ def cmd_queue_clear(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_queue_migrate(args: argparse.Namespace) -> int:
+    """Move every job of another queue (an SQLite file) into this one (a PostgreSQL server)."""
+    from foldfab.queue.location import open_queue
+    from foldfab.queue.migrate import move_jobs
+
+    source, target = open_queue(args.source, wait=args.wait), _queue_store(args)
+    moved = move_jobs(source, target)
+    if not moved:
+        print(f"nothing to move: {source.location} has no jobs")
+        return 0
+    first, last = min(moved.values()), max(moved.values())
+    print(f"moved {len(moved)} job{'s' if len(moved) != 1 else ''} from {source.location} to {target.location} "
+          f"(now jobs {first}-{last})")
+    return 0
+
+
 class QueueConsole:
     """The worker's terminal: job lines, the progress display of ``foldfab plot``, and pauses
     answered with Enter (without a terminal: ``foldfab queue continue ID``); ``rehearsal``: the
@@ -324,6 +340,14 @@ def add_commands(sub) -> None:
     clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
     clear.add_argument("--done", action="store_true", required=True, help="delete every done job")
     clear.set_defaults(func=cmd_queue_clear)
+
+    migrate = commands.add_parser("migrate", parents=[common], help="move every job of another queue into this one",
+                                  description="Move the jobs of another queue (such as the SQLite file of one "
+                                              "machine) into this one (--queue or $FOLDFAB_QUEUE, such as a "
+                                              "PostgreSQL server), with their progress and logs, under new ids.  "
+                                              "Stop the other queue's workers first.")
+    migrate.add_argument("source", metavar="FROM", help="the queue the jobs leave: an SQLite file (or a URL)")
+    migrate.set_defaults(func=cmd_queue_migrate)
 
     run = commands.add_parser("run", parents=[common], help="plot queued jobs (a worker)",
                               description="Plot jobs in priority and arrival order, one at a time, with the "

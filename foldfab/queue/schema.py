@@ -108,3 +108,17 @@ def migrations(dialect: str) -> tuple[tuple[str, ...], ...]:
     if dialect not in DIALECTS:
         raise ValueError(f"dialect must be one of {DIALECTS}")
     return tuple(tuple(statement for change in step for statement in change.render(dialect)) for step in STEPS)
+
+
+def columns(table: str) -> tuple[str, ...]:
+    """The columns ``table`` has at the current version, in order."""
+    found: list[str] = []
+    for step in STEPS:
+        for change in step:
+            if isinstance(change, Table) and change.name == table:
+                found.extend(column.name for column in change.columns)
+            elif isinstance(change, AddColumn) and change.table == table:
+                found.append(change.column.name)
+    if not found:
+        raise ValueError(f"no table {table!r} in the queue's schema")
+    return tuple(found)
