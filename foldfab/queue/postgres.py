@@ -91,6 +91,7 @@ class PostgresQueueStore(SqlQueueStore):
     queries = QUERIES
     for_update = "FOR UPDATE OF j"
     skip_locked = "FOR UPDATE OF j SKIP LOCKED"
+    survives_outages = True
 
     def __init__(self, url: str, wait: float = DEFAULT_WAIT):
         super().__init__()

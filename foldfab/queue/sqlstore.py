@@ -73,6 +73,10 @@ class SqlQueueStore:
     """Appended to a write's read of the rows it changes (PostgreSQL locks them)."""
     skip_locked = ""
     """Appended to the expiry's read (PostgreSQL passes over rows another writer holds)."""
+    survives_outages = False
+    """Whether :class:`~foldfab.queue.store.QueueBusy` means the store is out of reach for a while (a
+    server): a worker then plots on and saves its progress once it is back (PostgreSQL), instead of
+    giving the job up before its lease ends (an SQLite file another writer holds)."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -163,6 +167,19 @@ class SqlQueueStore:
         row = db.execute(f"SELECT state, cancel_requested, worker FROM jobs j WHERE id = ? {self.for_update}",
                          (job_id,)).fetchone()
         return (row[0], bool(row[1])) if row and row[2] == str(worker) and row[0] in ACTIVE else None
+
+    def _lapsed(self, db: Any, job_id: int, worker: WorkerId) -> tuple[str, bool] | None:
+        """Take back a job ``worker`` held whose lease lapsed while it could not reach the queue, if
+        nobody took it, retried or cancelled it meanwhile (it is still interrupted for that reason):
+        the worker plotted on, so the job is running."""
+        row = db.execute(f"SELECT state, reason FROM jobs j WHERE id = ? {self.for_update}", (job_id,)).fetchone()
+        if not (row and row[0] == "interrupted" and (row[1] or "").startswith(f"lease expired: worker {worker} ")):
+            return None
+        self._set(db, job_id, state="running", worker=str(worker), worker_host=worker.host, worker_pid=worker.pid,
+                  reason=None)
+        self._event(db, job_id, "reconnected", f"worker {worker} is back after its lease lapsed (nobody took the "
+                                               "job meanwhile): it plotted on, and goes on")
+        return ("running", False)
 
     # -- operator side
 
@@ -337,7 +354,7 @@ class SqlQueueStore:
                   progress: str | None = None, pauses_done: int | None = None,
                   drawn: tuple[float, float] | None = None) -> Control:
         with self._write() as db:
-            owned = self._owned(db, job_id, worker)
+            owned = self._owned(db, job_id, worker) or self._lapsed(db, job_id, worker)
             if owned is None:
                 return Control("lost", False, True)
             values = _given(acked_bytes=acked_bytes, progress=progress, pauses_done=pauses_done, drawn=drawn)
@@ -363,7 +380,7 @@ class SqlQueueStore:
         if state not in ("done", "failed", "cancelled", "interrupted"):
             raise ValueError(f"a job cannot finish as {state!r}")
         with self._write() as db:
-            if self._owned(db, job_id, worker) is None:
+            if self._owned(db, job_id, worker) is None and self._lapsed(db, job_id, worker) is None:
                 return False
             values = _given(acked_bytes=acked_bytes, pauses_done=pauses_done, progress=progress, drawn=drawn)
             self._set(db, job_id, state=state, worker=None, lease_expires=None, worker_host=None,

@@ -24,6 +24,10 @@ class QueueStore(Protocol):
     """Where the queue lives.  Every method is one atomic change (or one consistent read)."""
 
     location: str
+    survives_outages: bool
+    """True: :class:`QueueBusy` means the store is out of reach for a while (a server restarting, the
+    network gone), so a worker plots on and saves its progress once it is back; False: another
+    writer holds the store, and a worker that cannot renew its lease in time stops."""
 
     def add(self, jobs: Sequence[NewJob]) -> list[int]:
         """Queue every copy of every job, all or nothing; the new ids in order."""

@@ -17,6 +17,8 @@ import pytest
 from foldfab.devices import load_device
 from foldfab.programs.program import Program
 from foldfab.queue import NewJob, WorkerId, make_snapshot
+from foldfab.queue.postgres import PostgresQueueStore
+from foldfab.queue.store import QueueBusy
 from foldfab.queue.worker import Worker, WorkerOptions
 from helpers import ROOT
 
@@ -114,3 +116,115 @@ def test_three_hosts_share_one_queue_and_a_killed_host_resumes(postgres_store, s
         # at most one interruption (the killed host's job), then a resume on the same plotter
         assert kinds in (["queued", "started", "done"], ["queued", "started", "interrupted", "started", "done"])
         assert job.id in running or kinds == ["queued", "started", "done"]
+
+
+class GatedPlotter:
+    """A runner that draws stroke by stroke and, before the strokes named in ``gates``, waits until
+    the test opens that gate; honours the cancel event at every stroke boundary."""
+
+    def __init__(self, gates: dict[int, threading.Event]):
+        self.gates = gates
+        self.reached = {index: threading.Event() for index in gates}
+        self.drawn = 0
+
+    def __call__(self, program, device, port, *, events, cancel, operator):
+        from foldfab.plotting.engines.base import StreamStopped
+        from foldfab.plotting.progress import JobProgress
+
+        progress, acked = JobProgress(program, device), 0
+        events(progress.event("start", 0, 0, 0.0))
+        for index, stroke in enumerate(progress.strokes):
+            if index in self.gates:
+                self.reached[index].set()
+                assert self.gates[index].wait(120)
+            if cancel.is_set():
+                raise StreamStopped("stopped on request", acknowledged=acked, pauses_done=0, cancelled=True,
+                                    lifted=True)
+            self.drawn += 1
+            acked = stroke.end
+            events(progress.event("progress", acked, acked, 0.1 * index))
+        events(progress.event("done", len(program.text), len(program.text), 1.0))
+
+
+def outage_setup(store):
+    """One four-stroke job; heartbeats and finishes that fail, counted."""
+    profile = load_device("hp7475a")
+    program = Program("IN;SP1;PU0,0;PD400,0;PU0,100;PD400,100;PU0,200;PD400,200;PU0,300;PD400,300;SP0;",
+                      "hpgl", profile.name, (), ())
+    store.add([NewJob(make_snapshot(Path("farm.toml"), "[design]\n", "outage", profile, program), "sim://gated")])
+    failures, controls = [], []
+    for name in ("heartbeat", "finish"):
+        def counted(*args, _call=getattr(store, name), _name=name, **kw):
+            try:
+                result = _call(*args, **kw)
+            except QueueBusy:
+                failures.append(_name)
+                raise
+            controls.append(result)
+            return result
+        setattr(store, name, counted)
+    return failures, controls
+
+
+@pytest.fixture()
+def own_server():
+    """A server of the test's own, to stop and start again."""
+    from helpers.postgres import PostgresServer
+
+    server = PostgresServer()
+    try:
+        yield server.start()
+    finally:
+        server.destroy()
+
+
+def test_a_worker_plots_on_while_the_server_is_down_and_saves_its_progress_after(own_server):
+    store = PostgresQueueStore(own_server.new_database(), wait=0.5)
+    failures, _ = outage_setup(store)
+    go = threading.Event()
+    plotter = GatedPlotter({1: go})
+    worker = Worker(store, Quiet(), WorkerOptions(heartbeat=0.1, lease=1.0), runner=plotter, locate=False)
+    ended = []
+    thread = threading.Thread(target=lambda: ended.append(worker.run()), daemon=True)
+    thread.start()
+    assert plotter.reached[1].wait(120)
+    own_server.stop("immediate")  # the server is gone (a power cut)
+    wait_for(lambda: failures.count("heartbeat") >= 4)  # longer than the 1 s lease: 0.1+0.2+0.4+0.8 s backing off
+    go.set()  # the plotter draws on, offline, to the end of the sheet
+    wait_for(lambda: "finish" in failures)
+    assert plotter.drawn == 4 and thread.is_alive()
+    own_server.start()
+    thread.join(120)
+    assert ended and ended[0].ended == {"done": [1]}
+    job = store.job(1)
+    assert (job.state, job.acked_bytes, job.attempts) == ("done", job.program_bytes, 1)
+    assert [e.kind for e in store.events(1)] == ["queued", "started", "interrupted", "reconnected", "done"]
+    store.close()
+
+
+def test_a_worker_whose_job_was_taken_while_the_server_was_down_stops_at_the_next_stroke(own_server):
+    store = PostgresQueueStore(own_server.new_database(), wait=0.5)
+    failures, controls = outage_setup(store)
+    first, second = threading.Event(), threading.Event()
+    plotter = GatedPlotter({1: first, 2: second})
+    worker = Worker(store, Quiet(), WorkerOptions(heartbeat=0.1, lease=1.0), runner=plotter, locate=False)
+    ended = []
+    thread = threading.Thread(target=lambda: ended.append(worker.run()), daemon=True)
+    thread.start()
+    assert plotter.reached[1].wait(120)
+    own_server.stop("immediate")
+    wait_for(lambda: failures.count("heartbeat") >= 4)
+    first.set()
+    assert plotter.reached[2].wait(120)
+    own_server.start()
+    other = PostgresQueueStore(store.url)
+    taken = other.claim(WorkerId("another-host", 1, "x"), 30)  # the lease had lapsed: another worker takes it
+    assert taken is not None and taken.job.id == 1 and taken.job.acked_bytes > 0
+    wait_for(lambda: any(c.lost for c in controls))  # the worker's next heartbeat learns it
+    second.set()
+    thread.join(120)
+    assert plotter.drawn == 2  # stopped at the stroke boundary after it learnt it
+    assert ended and ended[0].ended == {"lost": [1]}
+    assert (store.job(1).state, store.job(1).worker) == ("running", "another-host/1/x")
+    other.close()
+    store.close()
