@@ -211,11 +211,12 @@ class PostgresQueueStore(SqlQueueStore):
     def _next_runnable(self, db: _Transaction, params: dict) -> tuple | None:
         skipped = list(params["exclude"])
         for _ in range(CLAIM_TRIES):
-            row = db.execute(f"{self.queries.runnable} LIMIT 1 {self.skip_locked}",
+            row = db.execute(f"SELECT j.id, j.port FROM jobs j JOIN snapshots s ON s.id = j.snapshot_id "
+                             f"{self.queries.runnable_where} {self.queries.claim_order} LIMIT 1 {self.skip_locked}",
                              params | {"exclude": skipped}).fetchone()
             if row is None:
                 return None
-            if not db.execute("SELECT pg_try_advisory_xact_lock(?, hashtext(?))", (LOCK_CLASS, row[4])).fetchone()[0]:
+            if not db.execute("SELECT pg_try_advisory_xact_lock(?, hashtext(?))", (LOCK_CLASS, row[1])).fetchone()[0]:
                 skipped.append(row[0])  # another worker is claiming on that plotter now: never wait for it
                 continue
             again = db.execute(f"{self.queries.select_jobs} {self.queries.runnable_where} AND j.id = :id",
