@@ -326,16 +326,19 @@ def add_commands(sub) -> None:
 
     for name, func, text in (("cancel", cmd_queue_cancel, "cancel a job (a running one stops safely)"),
                              ("retry", cmd_queue_retry, "queue a failed, cancelled or interrupted job again"),
+                             ("move", cmd_queue_retry, "queue an interrupted (failed, cancelled) job again on "
+                                                       "another plotter: the operator moved its sheet there"),
                              ("continue", cmd_queue_continue, "go on after a pause (the sheet is flipped)"),
                              ("remove", cmd_queue_remove, "delete a job that is not running")):
         action = commands.add_parser(name, parents=[common], help=text)
         action.add_argument("id", type=job_id, metavar="ID")
         action.set_defaults(func=func)
-        if name == "retry":
+        if name in ("retry", "move"):
             action.add_argument("--restart", action="store_true",
                                 help="from the start on a new sheet, not from the last acknowledged stroke")
-            action.add_argument("--port", type=_port, metavar="PORT", help="on this port from now on (the "
-                                "plotter's new device path, or another plotter of the same model)")
+            action.add_argument("--port", type=_port, metavar="PORT", required=name == "move",
+                                help="on this port from now on (the plotter's new device path, or another "
+                                     "plotter of the same model)")
 
     clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
     clear.add_argument("--done", action="store_true", required=True, help="delete every done job")

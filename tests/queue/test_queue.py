@@ -181,6 +181,23 @@ def test_continue_retry_remove_clear(store):
     assert raw_sql(store, "SELECT count(*) FROM events") == [(0,)]
 
 
+def test_queue_move_takes_an_interrupted_job_to_another_plotter_only_when_told(store, capsys):
+    fill(store, ["sim://a"], 1)
+    worker = WorkerId.current()
+    claim = store.claim(worker, 30)
+    store.heartbeat(claim.job.id, worker, 30, acked_bytes=7)
+    store.finish(claim.job.id, worker, "interrupted", "host lost power")
+    assert store.claim(worker, 30, port="sim://b") is None  # a half-drawn sheet never moves by itself
+    with pytest.raises(SystemExit) as stop:
+        main(["queue", "move", "1", "--queue", where(store)])
+    assert stop.value.code == 2 and "the following arguments are required: --port" in capsys.readouterr().err
+    code, out, _ = run_cli(capsys, "queue", "move", "1", "--port", "sim://b", "--queue", where(store))
+    assert code == 0 and "resumes at byte 7" in out
+    assert (store.job(1).port, store.job(1).acked_bytes) == ("sim://b", 7)
+    assert store.claim(worker, 30, port="sim://a") is None
+    assert store.claim(worker, 30, port="sim://b").job.id == 1
+
+
 def test_worker_loses_a_job_it_no_longer_holds(store):
     fill(store, ["sim://a"], 1)
     worker, other = WorkerId.current(), WorkerId.current()
