@@ -24,10 +24,7 @@ def state_home(tmp_path, monkeypatch):
 @pytest.fixture(scope="session")
 def postgres_server():
     """A real PostgreSQL server for this test session (tests/helpers/postgres.py), stopped at the end."""
-    from helpers.postgres import PostgresServer
+    from helpers.postgres import running_server
 
-    server = PostgresServer()
-    try:
-        yield server.start()
-    finally:
-        server.destroy()
+    with running_server() as server:
+        yield server

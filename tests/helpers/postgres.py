@@ -16,7 +16,9 @@ import re
 import shutil
 import subprocess
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
 
 SUPERUSER = "foldfab"
 """The database superuser ``initdb`` creates (local connections are trusted: the socket's folder
@@ -93,3 +95,13 @@ class PostgresServer:
         name = f"test{self.databases}"
         self._run("createdb", "-h", str(self.socket_dir), "-U", SUPERUSER, name)
         return self.url(name)
+
+
+@contextmanager
+def running_server() -> Iterator[PostgresServer]:
+    """A started server, stopped and deleted at the end."""
+    server = PostgresServer()
+    try:
+        yield server.start()
+    finally:
+        server.destroy()

@@ -169,13 +169,10 @@ def outage_setup(store):
 @pytest.fixture()
 def own_server():
     """A server of the test's own, to stop and start again."""
-    from helpers.postgres import PostgresServer
+    from helpers.postgres import running_server
 
-    server = PostgresServer()
-    try:
-        yield server.start()
-    finally:
-        server.destroy()
+    with running_server() as server:
+        yield server
 
 
 def test_a_worker_plots_on_while_the_server_is_down_and_saves_its_progress_after(own_server):
