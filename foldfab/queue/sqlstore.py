@@ -171,7 +171,10 @@ class SqlQueueStore:
     def _lapsed(self, db: Any, job_id: int, worker: WorkerId) -> tuple[str, bool] | None:
         """Take back a job ``worker`` held whose lease lapsed while it could not reach the queue, if
         nobody took it, retried or cancelled it meanwhile (it is still interrupted for that reason):
-        the worker plotted on, so the job is running."""
+        the worker plotted on, so the job is running.  Only on a store that survives outages: on
+        the others a worker that let its lease lapse has stopped its plotter (it lost the job)."""
+        if not self.survives_outages:
+            return None
         row = db.execute(f"SELECT state, reason FROM jobs j WHERE id = ? {self.for_update}", (job_id,)).fetchone()
         if not (row and row[0] == "interrupted" and (row[1] or "").startswith(f"lease expired: worker {worker} ")):
             return None
