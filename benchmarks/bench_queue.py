@@ -1,7 +1,12 @@
-"""Job queue speed, end to end through the command line (a new Python process each time).
+"""Job queue speed, end to end through the command line (a new Python process each time), and the
+claim throughput of many workers on one queue, PostgreSQL against SQLite.
 
 Run by hand:  python benchmarks/bench_queue.py
+              python benchmarks/bench_queue.py claims [--workers 16] [--jobs 3200] [--postgres URL]
 Targets: ``foldfab queue list`` with 10,000 jobs <= 0.3 s; ``foldfab queue add`` of a paper-scale job <= 0.5 s.
+``claims``: WORKERS processes (each its own store, as hosts have) claim and finish JOBS jobs spread
+over many plotters; claims per second overall and the claim latency (median, 99th percentile), on a
+PostgreSQL server (URL, else a throw-away one started as the tests do) and on an SQLite file.
 """
 
 from __future__ import annotations
@@ -87,6 +92,104 @@ def main() -> None:
         shutil.rmtree(folder)
 
 
+def _claimer(location: str, start, results) -> None:
+    """One worker: claim and finish until nothing is left; the latency of every claim (a claim
+    that found the queue busy is tried again, its time counted), and how many were busy."""
+    from foldfab.queue.location import open_queue
+    from foldfab.queue.records import WorkerId
+    from foldfab.queue.store import QueueBusy
+
+    store, worker, latencies, busy = open_queue(location, wait=10), WorkerId.current(), [], 0
+    store.jobs("running")  # connect before the clock starts
+    start.wait()
+    while True:
+        began = time.perf_counter()
+        while True:
+            try:
+                claim = store.claim(worker, 600)
+                break
+            except QueueBusy:
+                busy += 1
+        latencies.append(time.perf_counter() - began)
+        if claim is None:
+            break
+        while True:
+            try:
+                store.finish(claim.job.id, worker, "done", "benchmark")
+                break
+            except QueueBusy:
+                busy += 1
+    store.close()
+    results.put((latencies[:-1], busy))
+
+
+def claims(location: str, workers: int, jobs: int) -> tuple[float, float, float, int]:
+    """Claims per second, median and 99th-percentile claim latency (s) of ``workers`` processes, and
+    how many of their operations found the queue busy (tried again)."""
+    import multiprocessing
+
+    from foldfab.devices import load_device
+    from foldfab.programs.program import Program
+    from foldfab.queue.location import open_queue
+    from foldfab.queue.records import NewJob
+    from foldfab.queue.snapshot import make_snapshot
+
+    device = load_device("hp7475a")
+    snap = make_snapshot(Path("bench.toml"), "[design]\n", "bench", device,
+                         Program("IN;SP1;PU0,0;PD400,400;SP0;", "hpgl", device.name, (), ()))
+    store = open_queue(location)
+    plotters = 8 * workers
+    store.add([NewJob(snap, f"sim://p{i}", 0, jobs // plotters) for i in range(plotters)])
+    store.close()
+    context = multiprocessing.get_context("spawn")
+    start, results = context.Barrier(workers + 1), context.Queue()
+    processes = [context.Process(target=_claimer, args=(location, start, results)) for _ in range(workers)]
+    for process in processes:
+        process.start()
+    start.wait()  # every worker has connected
+    began = time.perf_counter()
+    answers = [results.get(timeout=1800) for _ in processes]
+    elapsed = time.perf_counter() - began
+    latencies = [x for times, _ in answers for x in times]
+    for process in processes:
+        process.join(60)
+    latencies.sort()
+    assert len(latencies) == plotters * (jobs // plotters), "a job was claimed twice or not at all"
+    return (len(latencies) / elapsed, statistics.median(latencies), latencies[int(0.99 * (len(latencies) - 1))],
+            sum(busy for _, busy in answers))
+
+
+def main_claims(argv: list[str]) -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="bench_queue.py claims")
+    parser.add_argument("--workers", type=int, default=16)
+    parser.add_argument("--jobs", type=int, default=3200)
+    parser.add_argument("--postgres", metavar="URL", help="an empty database (default: a throw-away server)")
+    args = parser.parse_args(argv)
+    server = None
+    if not args.postgres:
+        sys.path.insert(0, str(ROOT / "tests"))
+        from helpers.postgres import PostgresServer
+
+        server = PostgresServer().start()
+        args.postgres = server.new_database()
+    folder = Path(tempfile.mkdtemp(prefix="foldfab-bench-claims-"))
+    try:
+        print(f"{args.workers} worker processes claim and finish {args.jobs} jobs on {8 * args.workers} plotters")
+        print(f"{'queue':<12}{'claims/s':>10}{'median ms':>11}{'p99 ms':>9}{'busy':>7}")
+        for label, location in (("PostgreSQL", args.postgres), ("SQLite", str(folder / "queue.sqlite3"))):
+            rate, median, p99, busy = claims(location, args.workers, args.jobs)
+            print(f"{label:<12}{rate:>10.0f}{1000 * median:>11.1f}{1000 * p99:>9.1f}{busy:>7}", flush=True)
+    finally:
+        shutil.rmtree(folder)
+        if server is not None:
+            server.destroy()
+
+
 if __name__ == "__main__":
     cache_foldfab_bytecode()
-    main()
+    if sys.argv[1:2] == ["claims"]:
+        main_claims(sys.argv[2:])
+    else:
+        main()

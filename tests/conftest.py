@@ -19,3 +19,12 @@ if os.environ.get("CI"):
 def state_home(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
     return tmp_path / "state"
+
+
+@pytest.fixture(scope="session")
+def postgres_server():
+    """A real PostgreSQL server for this test session (tests/helpers/postgres.py), stopped at the end."""
+    from helpers.postgres import running_server
+
+    with running_server() as server:
+        yield server

@@ -11,9 +11,9 @@ from foldfab.cli.common import _add_max_faces, _add_scale_arg, _add_split_args, 
 
 
 def _queue_store(args: argparse.Namespace):
-    from foldfab.queue.sqlite import SqliteQueueStore, default_queue_path
+    from foldfab.queue.location import open_queue
 
-    return SqliteQueueStore(args.queue or default_queue_path(), wait=args.wait)
+    return open_queue(args.queue, wait=args.wait)
 
 
 def _when(seconds: float) -> str:
@@ -146,6 +146,22 @@ def cmd_queue_clear(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_queue_migrate(args: argparse.Namespace) -> int:
+    """Move every job of another queue (an SQLite file) into this one (a PostgreSQL server)."""
+    from foldfab.queue.location import open_queue
+    from foldfab.queue.migrate import move_jobs
+
+    source, target = open_queue(args.source, wait=args.wait), _queue_store(args)
+    moved = move_jobs(source, target)
+    if not moved:
+        print(f"nothing to move: {source.location} has no jobs")
+        return 0
+    first, last = min(moved.values()), max(moved.values())
+    print(f"moved {len(moved)} job{'s' if len(moved) != 1 else ''} from {source.location} to {target.location} "
+          f"(now jobs {first}-{last})")
+    return 0
+
+
 class QueueConsole:
     """The worker's terminal: job lines, the progress display of ``foldfab plot``, and pauses
     answered with Enter (without a terminal: ``foldfab queue continue ID``); ``rehearsal``: the
@@ -270,7 +286,8 @@ def add_commands(sub) -> None:
 
     job_id = _int_from(1, MAX_JOB_ID, "expected a job id")
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--queue", metavar="PATH", help="queue file (default: $FOLDFAB_QUEUE, else "
+    common.add_argument("--queue", metavar="PATH|URL", help="queue: an SQLite file, or a PostgreSQL server "
+                        "postgresql://user@host/db shared by several hosts (default: $FOLDFAB_QUEUE, else "
                         "$XDG_DATA_HOME/foldfab/queue.sqlite3, default ~/.local/share)")
     common.add_argument("--wait", type=_seconds_from(0, "expected 0 seconds or more"), default=DEFAULT_WAIT,
                         metavar="SECONDS",
@@ -309,20 +326,31 @@ def add_commands(sub) -> None:
 
     for name, func, text in (("cancel", cmd_queue_cancel, "cancel a job (a running one stops safely)"),
                              ("retry", cmd_queue_retry, "queue a failed, cancelled or interrupted job again"),
+                             ("move", cmd_queue_retry, "queue an interrupted (failed, cancelled) job again on "
+                                                       "another plotter: the operator moved its sheet there"),
                              ("continue", cmd_queue_continue, "go on after a pause (the sheet is flipped)"),
                              ("remove", cmd_queue_remove, "delete a job that is not running")):
         action = commands.add_parser(name, parents=[common], help=text)
         action.add_argument("id", type=job_id, metavar="ID")
         action.set_defaults(func=func)
-        if name == "retry":
+        if name in ("retry", "move"):
             action.add_argument("--restart", action="store_true",
                                 help="from the start on a new sheet, not from the last acknowledged stroke")
-            action.add_argument("--port", type=_port, metavar="PORT", help="on this port from now on (the "
-                                "plotter's new device path, or another plotter of the same model)")
+            action.add_argument("--port", type=_port, metavar="PORT", required=name == "move",
+                                help="on this port from now on (the plotter's new device path, or another "
+                                     "plotter of the same model)")
 
     clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
     clear.add_argument("--done", action="store_true", required=True, help="delete every done job")
     clear.set_defaults(func=cmd_queue_clear)
+
+    migrate = commands.add_parser("migrate", parents=[common], help="move every job of another queue into this one",
+                                  description="Move the jobs of another queue (such as the SQLite file of one "
+                                              "machine) into this one (--queue or $FOLDFAB_QUEUE, such as a "
+                                              "PostgreSQL server), with their progress and logs, under new ids.  "
+                                              "Stop the other queue's workers first.")
+    migrate.add_argument("source", metavar="FROM", help="the queue the jobs leave: an SQLite file (or a URL)")
+    migrate.set_defaults(func=cmd_queue_migrate)
 
     run = commands.add_parser("run", parents=[common], help="plot queued jobs (a worker)",
                               description="Plot jobs in priority and arrival order, one at a time, with the "

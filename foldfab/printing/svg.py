@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from xml.sax.saxutils import escape, quoteattr
 
-from foldfab.printing.page import Lines, Page, Shape, Text
+from foldfab.printing.page import Lines, Page, Shape
 
 FONT = "Bitstream Vera Sans, DejaVu Sans, Verdana, sans-serif"
 PT_MM = 25.4 / 72.0

@@ -2,7 +2,8 @@
 
 Takes fabricated jobs (program, device, sheet) as snapshots (:mod:`~foldfab.queue.snapshot`) and
 gives them to workers one plotter at a time (:mod:`~foldfab.queue.records`: states and records;
-:mod:`~foldfab.queue.store`: the store interface; :mod:`~foldfab.queue.sqlite`: SQLite), which stream
+:mod:`~foldfab.queue.store`: the store interface; :mod:`~foldfab.queue.sqlite`: SQLite;
+:mod:`~foldfab.queue.postgres`: a PostgreSQL server; :func:`open_queue` chooses), which stream
 them with leases and heartbeats (:mod:`~foldfab.queue.worker`) so that a killed process loses nothing.
 
 Import from the modules: this package imports nothing, so that the command line's parser can read

@@ -5,7 +5,7 @@ the plotter program built from them when the job was added (its text, sections,
 pauses and SHA-256).  Editing the job file, its SVG files or the device profile
 later changes nothing queued; the program is what runs.
 
-States and transitions (every change is one ``BEGIN IMMEDIATE`` transaction)::
+States and transitions (every change is one transaction)::
 
     queued ──claim──> running ──pause──> waiting ──continue──> running
     running ──> done | failed | cancelled | interrupted
@@ -27,7 +27,8 @@ interrupted job (a half-drawn sheet on it) runs nothing else until that job is
 resumed, cancelled or removed; so does one with a job queued again to resume (``retry``
 without ``restart`` of a job partly acknowledged), and such resumes are claimed first.
 
-Every store (:mod:`foldfab.queue.sqlite` today) keeps these records and follows these transitions.
+Every store (:mod:`foldfab.queue.sqlite`, :mod:`foldfab.queue.postgres`, both on the rules of
+:mod:`foldfab.queue.sqlstore`) keeps these records and follows these transitions.
 """
 
 from __future__ import annotations

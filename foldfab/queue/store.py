@@ -1,11 +1,14 @@
 """The store interface: what every queue store does (:class:`QueueStore`) and the errors it raises.
 
 Storage is behind :class:`QueueStore`; :class:`~foldfab.queue.sqlite.SqliteQueueStore` keeps it in an
-SQLite file.  Every method is one atomic change (or one consistent read).
+SQLite file, :class:`~foldfab.queue.postgres.PostgresQueueStore` on a PostgreSQL server
+(:func:`foldfab.queue.location.open_queue` chooses).  Every method is one atomic change (or one
+consistent read).
 """
 
 from __future__ import annotations
 
+import threading
 from typing import TYPE_CHECKING, Protocol, Sequence
 
 from foldfab.errors import FoldfabError
@@ -21,6 +24,10 @@ class QueueStore(Protocol):
     """Where the queue lives.  Every method is one atomic change (or one consistent read)."""
 
     location: str
+    survives_outages: bool
+    """True: :class:`QueueBusy` means the store is out of reach for a while (a server restarting, the
+    network gone), so a worker plots on and saves its progress once it is back; False: another
+    writer holds the store, and a worker that cannot renew its lease in time stops."""
 
     def add(self, jobs: Sequence[NewJob]) -> list[int]:
         """Queue every copy of every job, all or nothing; the new ids in order."""
@@ -79,6 +86,10 @@ class QueueStore(Protocol):
                acked_bytes: int | None = None, pauses_done: int | None = None,
                progress: str | None = None, drawn: tuple[float, float] | None = None) -> bool:
         """End the worker's hold: ``done``, ``failed``, ``cancelled`` or ``interrupted``; False if it was lost."""
+
+    def wait_for_work(self, timeout: float, stop: threading.Event) -> None:
+        """Wait up to ``timeout`` s for a job to become runnable (sooner when the store can tell,
+        as PostgreSQL's ``NOTIFY`` does), or until ``stop`` is set."""
 
     def close(self) -> None:
         """Release the storage."""

@@ -53,6 +53,10 @@ if TYPE_CHECKING:
     from foldfab.plotting.engines.base import StreamStopped
 
 MODES = ("until-empty", "once", "follow")
+MAX_BACKOFF = 30.0
+"""Longest wait (s) between two tries to reach a queue server that is out of reach."""
+FINISH_PATIENCE = 3600.0
+"""How long (s) a worker tries to record a job's end on a queue server that is out of reach."""
 DRY_RUN_PORT = "sim://?time=instant"
 """``--dry-run``: the simulated plotter of the job's device, as fast as it can go."""
 
@@ -139,7 +143,8 @@ class WorkerOptions:
     heartbeat: float = DEFAULT_HEARTBEAT
     """Longest time between two heartbeats (progress is also saved when a stroke is done)."""
     poll: float = 2.0
-    """follow: seconds between looks at an empty queue; also how often a pause checks the queue."""
+    """follow: most seconds between looks at an empty queue (a PostgreSQL queue wakes the worker at
+    once when a job may have become runnable); also how often a pause checks the queue."""
     retry_after: float = 60.0
     """follow: seconds before this worker resumes a job it saw interrupted."""
 
@@ -222,6 +227,8 @@ class _Heartbeat(threading.Thread):
         self.cancel_requested = False
         self.lost: str | None = None
         self.renewed = time.monotonic()
+        self.offline: str | None = None  # why the queue could not be reached, while it cannot
+        self.delay = options.heartbeat
         self._poke = threading.Event()
         self._stopped = threading.Event()
         self._saving = threading.Lock()  # one save at a time, so an older one never lands after a newer one
@@ -232,7 +239,7 @@ class _Heartbeat(threading.Thread):
 
     def run(self) -> None:
         while not self._stopped.is_set():
-            self._poke.wait(self.options.heartbeat)
+            self._poke.wait(self.delay)
             self._poke.clear()
             if not self._stopped.is_set():
                 self.beat()
@@ -247,19 +254,27 @@ class _Heartbeat(threading.Thread):
             with self._saving:
                 control = self.store.heartbeat(self.job_id, self.worker, self.options.lease, self.acked,
                                                self.progress, self.pauses_done, self.drawn)
-        except QueueBusy as exc:  # another writer holds the queue: again at the next beat, while the lease lasts
+        except QueueBusy as exc:
+            if self.store.survives_outages:  # a server out of reach: plot on, the progress kept here
+                self.offline = str(exc)
+                self.delay = min(2 * self.delay, MAX_BACKOFF)
+                return
+            # another writer holds the queue: again at the next beat, while the lease lasts
             if time.monotonic() - self.renewed > 0.8 * self.options.lease:
                 self.give_up(f"the lease could not be renewed for {self.options.lease:g} s ({exc})")
             return
         except FoldfabError as exc:  # a full disk, a read-only file: plotting on would draw what is never saved
             self.give_up(f"the progress could not be saved: {exc}")
             return
-        self.renewed = time.monotonic()
+        self.renewed, self.delay = time.monotonic(), self.options.heartbeat
         if control.lost:
-            self.give_up("the job is no longer this worker's (its lease expired, or it was removed)")
+            self.give_up("the job is no longer this worker's (its lease expired and it was taken, retried, "
+                         "cancelled or removed" + (f" while the queue was out of reach: {self.offline})"
+                                                   if self.offline else ")"))
         elif control.cancel_requested and not self.cancel_requested:
             self.cancel_requested = True
             self.cancel.set()
+        self.offline = None
 
     def give_up(self, reason: str) -> None:
         self.lost = reason
@@ -314,7 +329,7 @@ class Worker:
             if claim is None:
                 if self.options.mode != "follow":
                     return self._ended(summary)
-                self.stopping.wait(self.options.poll)
+                self.store.wait_for_work(self.options.poll, self.stopping)
                 continue
             state = self.run_job(claim)
             summary.add(claim.job.id, state)
@@ -391,12 +406,26 @@ class Worker:
         """Stop the heartbeat, record the end in the queue, tell the UI."""
         if heartbeat.is_alive():
             heartbeat.finish()
-        if state != "lost" and not self.store.finish(job.id, self.id, state, message, acked, heartbeat.pauses_done,
-                                                     heartbeat.progress, heartbeat.drawn):
+        if state != "lost" and not self._finish(job.id, state, message, acked, heartbeat):
             state, message = "lost", f"{message}; but the job was no longer this worker's, so the queue keeps " \
                                      "what the next writer decided"
         self.ui.job_ended(job, state, message)
         return state
+
+
+    def _finish(self, job_id: int, state: str, message: str, acked: int | None, heartbeat: _Heartbeat) -> bool:
+        """Record the end; a store that survives outages is tried again, backing off, until it is
+        back (at most ``FINISH_PATIENCE`` s): the end of a sheet drawn offline is not lost."""
+        delay, deadline = self.options.heartbeat, time.monotonic() + FINISH_PATIENCE
+        while True:
+            try:
+                return self.store.finish(job_id, self.id, state, message, acked, heartbeat.pauses_done,
+                                         heartbeat.progress, heartbeat.drawn)
+            except QueueBusy:
+                if not self.store.survives_outages or time.monotonic() + delay > deadline:
+                    raise
+                time.sleep(delay)  # backing off until the server is back
+                delay = min(2 * delay, MAX_BACKOFF)
 
 
 def _failed_last(events) -> bool:

@@ -359,13 +359,13 @@ class Studio:
         """The session: the first job, its path, the devices and whether the queue is there."""
         from foldfab.devices import list_devices
         from foldfab.job import job_data, load_job
-        from foldfab.queue.sqlite import default_queue_path
+        from foldfab.queue.location import shown_location
 
         path = self.job_path or self.start_dir / "untitled.toml"
         job = job_data(_checked(load_job(path))) if self.job_path and self.job_path.is_file() else \
             {**NEW_JOB, "design": {"name": path.stem}}
         return {"job": job, "path": str(path), "display": self.display(path), "start_dir": str(self.start_dir),
-                "devices": list_devices(), "queue": {"available": True, "location": str(default_queue_path())},
+                "devices": list_devices(), "queue": {"available": True, "location": shown_location()},
                 "max_body": MAX_BODY}
 
     def design(self, request: dict) -> Response:
@@ -472,7 +472,7 @@ class Studio:
         """Build the program now and add a snapshot of it to the plot queue."""
         from foldfab.queue.records import MAX_COPIES, PRIORITIES, NewJob
         from foldfab.queue.snapshot import make_snapshot
-        from foldfab.queue.sqlite import SqliteQueueStore, default_queue_path
+        from foldfab.queue.location import open_queue
 
         design, device, fab = self._fabricate(request)
         port = _field(request, "port", str, "") or device.port
@@ -483,7 +483,7 @@ class Studio:
         copies = _number(request, "copies", 1, 1, MAX_COPIES)
         priority = _number(request, "priority", 0, *PRIORITIES)
         snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
-        store = SqliteQueueStore(default_queue_path())
+        store = open_queue()
         try:
             ids = store.add([NewJob(snapshot, port, priority, copies)])
         finally:

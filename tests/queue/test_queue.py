@@ -25,10 +25,12 @@ from foldfab.programs.program import PauseMark, Program
 from foldfab.queue.records import NewJob, WorkerId
 from foldfab.queue.snapshot import make_snapshot
 from foldfab.queue.sqlite import SqliteQueueStore
+from foldfab.queue.location import open_queue
 from foldfab.queue.snapshot import load_snapshot_device
 from foldfab.queue.sqlite import MIGRATIONS, SCHEMA_VERSION
 from helpers import HEXAGON, ROOT
 from helpers.cli import run as run_cli
+from helpers.queues import raw_sql
 
 
 def snapshot(text: str = "IN;SP1;PU0,0;PD400,400;SP0;", name: str = "test job", pauses=()):
@@ -38,15 +40,8 @@ def snapshot(text: str = "IN;SP1;PU0,0;PD400,400;SP0;", name: str = "test job", 
     return make_snapshot(Path("job.toml"), "[design]\n", name, device, program)
 
 
-def fill(store: SqliteQueueStore, ports: list[str], per_port: int) -> list[int]:
+def fill(store, ports: list[str], per_port: int) -> list[int]:
     return store.add([NewJob(snapshot(), port, 0, per_port) for port in ports])
-
-
-@pytest.fixture()
-def store(tmp_path):
-    store = SqliteQueueStore(tmp_path / "queue.sqlite3", wait=2.0)
-    yield store
-    store.close()
 
 
 # --- states and transitions ------------------------------------------------------------------
@@ -68,7 +63,7 @@ def test_add_list_and_snapshot_round_trip(store):
 def test_a_queued_job_knows_its_length_before_it_runs(store, capsys):
     """Issue 18: ``queue list --json`` showed drawn_total_mm 0.0 for a queued job whose length is known at add."""
     store.add([NewJob(snapshot("IN;SP1;PU0,0;PD400,300;PU0,0;PD0,400;SP0;"), "sim://a", 0, 2)])
-    code, out, _ = run_cli(capsys, "queue", "list", "--json", "--queue", str(store.path))
+    code, out, _ = run_cli(capsys, "queue", "list", "--json", "--queue", store.location)
     listed = json.loads(out)
     assert code == 0 and [j["state"] for j in listed] == ["queued"] * 2
     assert [j["drawn_total_mm"] for j in listed] == [pytest.approx(12.5 + 10.0)] * 2  # 40 units/mm: 500 + 400 units
@@ -184,9 +179,25 @@ def test_continue_retry_remove_clear(store):
         store.events(2) or store.job(2)
     assert store.snapshot(3)  # the shared snapshot stays while a copy uses it
     store.remove(3)
-    with sqlite3.connect(store.path) as db:
-        assert db.execute("SELECT count(*) FROM snapshots").fetchone() == (0,)
-        assert db.execute("SELECT count(*) FROM events").fetchone() == (0,)
+    assert raw_sql(store, "SELECT count(*) FROM snapshots") == [(0,)]
+    assert raw_sql(store, "SELECT count(*) FROM events") == [(0,)]
+
+
+def test_queue_move_takes_an_interrupted_job_to_another_plotter_only_when_told(store, capsys):
+    fill(store, ["sim://a"], 1)
+    worker = WorkerId.current()
+    claim = store.claim(worker, 30)
+    store.heartbeat(claim.job.id, worker, 30, acked_bytes=7)
+    store.finish(claim.job.id, worker, "interrupted", "host lost power")
+    assert store.claim(worker, 30, port="sim://b") is None  # a half-drawn sheet never moves by itself
+    with pytest.raises(SystemExit) as stop:
+        main(["queue", "move", "1", "--queue", where(store)])
+    assert stop.value.code == 2 and "the following arguments are required: --port" in capsys.readouterr().err
+    code, out, _ = run_cli(capsys, "queue", "move", "1", "--port", "sim://b", "--queue", where(store))
+    assert code == 0 and "resumes at byte 7" in out
+    assert (store.job(1).port, store.job(1).acked_bytes) == ("sim://b", 7)
+    assert store.claim(worker, 30, port="sim://a") is None
+    assert store.claim(worker, 30, port="sim://b").job.id == 1
 
 
 def test_worker_loses_a_job_it_no_longer_holds(store):
@@ -248,12 +259,17 @@ def test_cancel_requested_then_worker_dies_ends_cancelled(store):
     assert store.job(claim.job.id).state == "cancelled"
 
 
+def where(store) -> str:
+    """What --queue and open_queue take for ``store``."""
+    return getattr(store, "url", None) or str(store.path)
+
+
 # --- racing workers ---------------------------------------------------------------------------
 
 
-def _drain(path: str, results, ports_in_use, lock, delay: float = 0.0) -> None:
+def _drain(location: str, results, ports_in_use, lock, delay: float = 0.0) -> None:
     """A minimal worker: claim, 'plot', finish, until nothing is left; record what it ran."""
-    store = SqliteQueueStore(path, wait=30)
+    store = open_queue(location, wait=30)
     worker = WorkerId.current()
     while True:
         claim = store.claim(worker, 30)
@@ -273,12 +289,13 @@ def _drain(path: str, results, ports_in_use, lock, delay: float = 0.0) -> None:
     store.close()
 
 
+@pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")
 def test_threads_racing_run_every_job_exactly_once(store):
     ids = fill(store, [f"sim://p{i}" for i in range(5)], 12)
     results: list[int] = []
     in_use: list[str] = []
     lock = threading.Lock()
-    threads = [threading.Thread(target=_drain, args=(str(store.path), results, in_use, lock, 0.002))
+    threads = [threading.Thread(target=_drain, args=(where(store), results, in_use, lock, 0.002))
                for _ in range(8)]
     for thread in threads:
         thread.start()
@@ -294,7 +311,7 @@ def test_processes_racing_run_every_job_exactly_once(store):
     context = multiprocessing.get_context("spawn")
     with context.Manager() as manager:
         results, in_use, lock = manager.list(), manager.list(), manager.Lock()
-        processes = [context.Process(target=_drain, args=(str(store.path), results, in_use, lock, 0.002))
+        processes = [context.Process(target=_drain, args=(where(store), results, in_use, lock, 0.002))
                      for _ in range(4)]
         for process in processes:
             process.start()
@@ -354,7 +371,8 @@ def test_newer_schema_and_foreign_files_are_refused(tmp_path):
         SqliteQueueStore(other).jobs()
 
 
-def test_locked_queue_waits_then_says_so_and_loses_nothing(store, capsys):
+def test_locked_queue_waits_then_says_so_and_loses_nothing(sqlite_store, capsys):
+    store = sqlite_store
     fill(store, ["sim://a"], 2)
     blocker = sqlite3.connect(store.path, isolation_level=None)
     blocker.execute("BEGIN IMMEDIATE")
@@ -431,7 +449,8 @@ def test_damaged_queue_file_is_reported_and_left_alone(tmp_path, capsys):
     assert path.read_bytes() == before
 
 
-def test_damaged_pages_inside_a_queue_are_reported(store):
+def test_damaged_pages_inside_a_queue_are_reported(sqlite_store):
+    store = sqlite_store
     fill(store, ["sim://a"], 200)
     store.close()
     with sqlite3.connect(store.path) as db:
@@ -447,8 +466,7 @@ def test_damaged_pages_inside_a_queue_are_reported(store):
 
 def test_tampered_program_is_claimed_for_the_worker_to_fail(store):
     fill(store, ["sim://a", "sim://b"], 1)
-    with sqlite3.connect(store.path) as db:
-        db.execute("UPDATE snapshots SET program = 'IN;PD0,0;' WHERE id = 1")
+    raw_sql(store, "UPDATE snapshots SET program = 'IN;PD0,0;' WHERE id = 1")
     worker = WorkerId.current()
     claim = store.claim(worker, 30)
     assert claim.job.id == 1 and claim.stored is None and "does not match its SHA-256" in claim.damage
