@@ -176,3 +176,23 @@ def test_a_simulated_cutter_has_its_profiles_usb_ids(monkeypatch):
     assert (simulated_cutter("grbl").vendor, simulated_cutter("grbl").product) == (0x0B4D, 0x1137)
     with pytest.raises(FoldfabError, match="simulated USB cutter grbl\\?noise=2"):
         simulated_cutter("grbl?noise=2")
+
+
+def test_the_silhouette_cameo_4_draws_the_whole_job_over_usb(monkeypatch, capsys):
+    """Issue 21's "done when": `plot --device silhouette-cameo-4 --port usb://silhouette` on the
+    simulated Cameo 4 behind pyusb (GP-GL, status polling, found by its own USB id 0b4d:1137)."""
+    from foldfab.cli import main
+
+    cameo = "silhouette-cameo-4"
+    monkeypatch.setattr(protocol_usb, "_SIMULATED", {})
+    monkeypatch.setenv("FOLDFAB_USB_SIM", f"{cameo}?time=instant")
+    assert main(["plot", str(HEXAGON), "--device", cameo, "--port", "usb://silhouette", "--yes"]) == 0
+    assert "done" in capsys.readouterr().out
+    (backend,) = protocol_usb._SIMULATED.values()
+    (found,) = backend.devices
+    assert (found.vendor, found.product) == (0x0B4D, 0x1137)
+    sim = found.link.sim
+    device = load_device(cameo)
+    program = fabricate(load_design(HEXAGON), device, job_spec(load_job(HEXAGON))).program
+    assert same_strokes(sim.strokes, interpret(program, device, sim.sheet).strokes)
+    assert sim.stats.bytes_lost == 0 and sim.machine.stroke is None
