@@ -135,3 +135,28 @@ def test_a_board_whose_settings_do_not_say_laser_mode_and_30_is_refused(laser, s
     assert "\n" not in str(refused.value)
     assert any(word in str(refused.value) for word in ("$32", "$30", "unreadable setting"))
     assert b"M4" not in board.written and b"G1" not in board.written
+
+
+@pytest.mark.parametrize("fault, options, message", [
+    ("cancel", "", "stopped on request"),
+    ("error", "error_at=40", "GRBL error 20"),
+    ("disconnect", "disconnect_after=3000", "disconnected|did not answer|lost"),
+])
+def test_a_stopped_laser_job_resumes_on_a_fresh_board_and_burns_the_rest_at_its_power(laser, fault, options, message):
+    """End to end on the simulated board: the stop leaves the beam off (where the board can still
+    be reached), and the resume burns exactly the strokes not yet burnt, each at its layer's power."""
+    import re
+
+    from helpers.resumes import leading_matches, stop_and_resume
+
+    program = fabricated(str(ROOT / "jobs" / "vase-svg.toml"), "grbl-laser").program
+    stop, port, second, index, want = stop_and_resume(
+        laser, program, options, cancel_after=6000 if fault == "cancel" else None)
+    assert re.search(message, str(stop)), str(stop)
+    if fault != "disconnect":
+        assert port.simulator.beam is None  # off: M5 (after a feed hold and reset on a fault)
+    assert 0 < index < len(want)
+    assert index <= leading_matches(port.simulator.strokes, want), "a stroke would be lost"
+    assert same_strokes(second.strokes, want[index:])
+    assert [s.power for s in second.strokes] == [s.power for s in want[index:]]
+    assert second.beam is None  # the end of the resumed job switches it off too
