@@ -23,6 +23,8 @@ FAULTS = {
     "stall": ("time=fast&stall=1e9&stall_at=3000", None, "did not answer OE|took no data"),
     # a printer device says so; on raw USB the cutter just takes nothing (the protocol's status tells)
     "paper-out": ("time=instant", 3000, "paper out: load the sheet|took no data for .* an empty tray"),
+    # a GP-GL cutter's own status (ESC 0x05 answers 2): the sheet came out
+    "tray-empty": ("time=instant&unload_at=3000", None, "tray empty"),
 }
 
 

@@ -135,7 +135,7 @@ def test_writes_wait_while_the_cutter_is_busy_and_nothing_is_lost(bus):
     assert sim.stats.stalled_time == pytest.approx(5)
 
 
-@pytest.mark.parametrize("fault", list(FAULTS))
+@pytest.mark.parametrize("fault", [fault for fault in FAULTS if fault != "tray-empty"])  # GP-GL's own
 def test_fault_stops_safely_and_the_resume_completes_the_drawing(fault, monkeypatch):
     def opened(options, paper_out_after):
         cutter = simulated(options, paper_out_after)
@@ -196,3 +196,18 @@ def test_the_silhouette_cameo_4_draws_the_whole_job_over_usb(monkeypatch, capsys
     program = fabricate(load_design(HEXAGON), device, job_spec(load_job(HEXAGON))).program
     assert same_strokes(sim.strokes, interpret(program, device, sim.sheet).strokes)
     assert sim.stats.bytes_lost == 0 and sim.machine.stroke is None
+
+
+@pytest.mark.parametrize("fault", ["cancel", "unplug", "tray-empty"])
+def test_the_cameo_over_usb_stops_safely_and_the_resume_completes_the_drawing(fault, monkeypatch):
+    """The fault matrix on the Silhouette itself behind pyusb: GP-GL status polling over the bus,
+    its tray-empty status among the faults."""
+    cameo = "silhouette-cameo-4"
+
+    def opened(options, paper_out_after):
+        cutter = simulated(options, paper_out_after, device=cameo)
+        monkeypatch.setattr(protocol_usb, "BACKEND", SimulatedUsbBackend([cutter]))
+        port = open_port("usb://silhouette", load_device(cameo), write_timeout=2.0)
+        return port, cutter.link.sim, port.close
+
+    check_stop(fault, *stop_and_resume(load_device(cameo), fabricated(VASE, cameo), fault, opened))
