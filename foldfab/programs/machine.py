@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from array import array
 from dataclasses import dataclass, field
+from collections.abc import Iterable
 from itertools import chain
 from typing import TYPE_CHECKING
 
@@ -129,27 +130,31 @@ class Machine:
         raise NotImplementedError
 
     def run_tokens(self, tokenizer, text: str) -> Interpretation:
-        """Run program ``text`` command by command, as ``tokenizer`` (``feed``, ``close``; commands
-        with an ``offset``) gives them, pausing first at the known program's pause marks (a
-        language without a pause command has them only as offsets)."""
+        """Run program ``text`` command by command as ``tokenizer`` (``feed``, ``close``) gives
+        them, a chunk of bytes at a time (a chunk's commands are garbage once run)."""
+        data = text.encode("latin-1")
+
+        def commands():
+            for start in range(0, len(data), _CHUNK):
+                yield from tokenizer.feed(data[start:start + _CHUNK])
+            yield from tokenizer.close()
+        return self.run_commands(commands(), len(text))
+
+    def run_commands(self, commands: Iterable, length: int) -> Interpretation:
+        """Execute ``commands`` (each with an ``offset``) of a program ``length`` bytes long,
+        pausing first at the known program's pause marks they reach (a language without a pause
+        command has them only as offsets)."""
         self.deferred = []
         marks = list(self.known.pauses) if self.known else []
-        data = text.encode("latin-1")
-        for start in range(0, len(data), _CHUNK):
-            self._run_commands(tokenizer.feed(data[start:start + _CHUNK]), marks)
-        self._run_commands(tokenizer.close(), marks)
-        self.at = len(text)
-        for mark in marks:
-            self.pause(mark)
-        return self.finish()
-
-    def _run_commands(self, commands: list, marks: list[PauseMark]) -> None:
-        """Execute ``commands``, pausing first at the ``marks`` they reach (popped)."""
         for command in commands:
             self.at = command.offset
             while marks and marks[0].offset <= command.offset:
                 self.pause(marks.pop(0))
             self.execute(command)
+        self.at = length
+        for mark in marks:
+            self.pause(mark)
+        return self.finish()
 
     def pause(self, mark: PauseMark) -> None:
         """The device stops here for the operator (with the pen up)."""

@@ -72,17 +72,7 @@ class EbbMachine(Machine):
         self.unmarked: list[tuple[float, float]] = []  # pen-down move ends since the last mark
 
     def run(self, text: str) -> Interpretation:
-        self.deferred = []
-        marks = list(self.known.pauses) if self.known else []
-        for command, _ in ebb_commands(text):
-            self.at = command.offset
-            while marks and marks[0].offset <= command.offset:
-                self.pause(marks.pop(0))
-            self.execute(command)
-        self.at = len(text)
-        for mark in marks:
-            self.pause(mark)
-        return self.finish()
+        return self.run_commands((command for command, _ in ebb_commands(text)), len(text))
 
     def pause(self, mark: PauseMark) -> None:
         super().pause(mark)
