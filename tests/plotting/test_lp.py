@@ -40,9 +40,9 @@ def served(options: str = "time=instant", paper_out_after=None, device=ROLAND):
     return path, link, sim, close
 
 
-def opened(options, paper_out_after, write_timeout=2.0):
-    path, _, sim, close = served(options, paper_out_after)
-    port = open_port(f"lp://{path}", load_device(ROLAND), write_timeout=write_timeout)
+def opened(options, paper_out_after, write_timeout=2.0, device=ROLAND):
+    path, _, sim, close = served(options, paper_out_after, device)
+    port = open_port(f"lp://{path}", load_device(device), write_timeout=write_timeout)
 
     def close_all():
         port.close()
@@ -149,3 +149,13 @@ def test_fault_stops_safely_and_the_resume_completes_the_drawing(fault):
     device = load_device(ROLAND)
     fab = fabricated(VASE, ROLAND)
     check_stop(fault, *stop_and_resume(device, fab, fault, opened))
+
+
+@pytest.mark.parametrize("fault", ["cancel", "unplug", "tray-empty"])
+def test_the_cameo_through_its_printer_device_stops_safely_and_the_resume_completes_the_drawing(fault):
+    """A Silhouette presents a printer-class interface (usblp takes it): the fault matrix on the
+    Cameo 4 through lp://, its own tray-empty status among the faults."""
+    cameo = "silhouette-cameo-4"
+    fab = fabricated(VASE, cameo)
+    check_stop(fault, *stop_and_resume(load_device(cameo), fab, fault,
+                                       lambda options, paper_out: opened(options, paper_out, device=cameo)))
