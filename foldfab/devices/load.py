@@ -262,7 +262,8 @@ def _parse(root: _Reader) -> DeviceProfile:
         buffer=buffer, motion=motion, limits=limits, gcode=gcode, layers=MappingProxyType({}),
         source=root.file, ebb=_parse_ebb(root, protocol, buffer, motion, units),
     )
-    firmware = root.take("firmware_blade_offset", "true or false", _boolean, False)
+    # a GP-GL cutter compensates with FC, its [gpgl] blade_offset: foldfab then moves no path
+    firmware = root.take("firmware_blade_offset", "true or false", _boolean, protocol == "gpgl")
     layers_reader = root.table("layers")
     layers, blades = {}, {}
     for layer in REQUIRED_LAYERS:

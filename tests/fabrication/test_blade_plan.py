@@ -54,7 +54,9 @@ def test_profiles_say_who_compensates():
     knife = load_device("grbl-dragknife")
     assert knife.blades == {"cut": Blade(offset=0.25, swivel_angle=5.0, overcut=0.5)}
     assert not knife.firmware_blade_offset
-    for name in ("graphtec-ce6000", "roland-gx24"):
+    # the HP-GL cutters' own setting, and GP-GL's FC (the profile's [gpgl] blade_offset)
+    for name in ("graphtec-ce6000", "roland-gx24", "silhouette-cameo-4", "silhouette-portrait-3",
+                 "graphtec-ce6000-gpgl"):
         assert load_device(name).firmware_blade_offset and not load_device(name).blades
     assert not load_device("grbl").blades and not load_device("grbl").firmware_blade_offset
 
@@ -96,11 +98,12 @@ def test_job_layers_override_the_blade_and_scored_layers_refuse_it():
         fabricated(knife, blade_offset="thin")
 
 
-def test_a_cutter_that_compensates_itself_ignores_the_job_blade_with_a_warning():
-    fab = fabricated(load_device("roland-gx24"), blade_offset=0.3)
+@pytest.mark.parametrize("name", ["roland-gx24", "silhouette-cameo-4"])
+def test_a_cutter_that_compensates_itself_ignores_the_job_blade_with_a_warning(name):
+    fab = fabricated(load_device(name), blade_offset=0.3)
     assert cut_pass(fab.plan).blade is None
     assert any("blade_offset = 0.3 ignored" in w and "firmware_blade_offset" in w for w in fab.warnings)
-    plain = fabricated(load_device("roland-gx24"))
+    plain = fabricated(load_device(name))
     assert fab.program.text == plain.program.text
 
 
