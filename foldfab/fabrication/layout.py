@@ -28,8 +28,8 @@ def place(design: Design, device: DeviceProfile, spec: FabricationSpec):
     bounds = (complex(*pts.min(axis=0)), complex(*pts.max(axis=0)))
     margin = spec.margin
     try:
-        sheet, area, reach = reachable(design, device, spec)
         swing = _swing(design, device, spec)
+        sheet, area, reach = _reachable(device, spec, swing)
         margin = max(margin, swing)  # nor past the sheet's edge
         scale = spec.scale
         if scale == "fit":
@@ -51,13 +51,18 @@ def reachable(design: Design, device: DeviceProfile,
     """The sheet, the part of it the design's lines may take (x0, y0, x1, y1, sheet mm): the
     device's reach, on both sides of a two-sided job's sheet, less a drag knife's swing; and the
     words for that part, for errors."""
+    return _reachable(device, spec, _swing(design, device, spec))
+
+
+def _reachable(device: DeviceProfile, spec: FabricationSpec,
+               swing: float) -> tuple[tuple[float, float], tuple, str]:
+    """:func:`reachable`, the knife's ``swing`` (:func:`_swing`) given."""
     sheet = spec.sheet or device.sheet
     area = device.frame(sheet).device_rect_on_sheet(*device.plottable_area)
     reach = "the device's plottable area"
     if spec.strategy == "two-sided":
         area = both_sides(area, sheet, spec.flip_edge)
         reach += f" on both sides of the sheet (flipped {FLIPS[spec.flip_edge]})"
-    swing = _swing(design, device, spec)
     if swing:  # the knife's axis goes up to its blade offset beyond the lines it cuts
         area = (area[0] + swing, area[1] + swing, area[2] - swing, area[3] - swing)
         reach += f" less the {swing:g} mm blade offset the knife swings out by"
