@@ -29,6 +29,7 @@ class Fabrication:
     device: DeviceProfile
     layout: PlotPlan        # the plan before optimization (for the travel it saves)
     warnings: tuple[str, ...] = ()   # job settings the device does not have, ignored
+    piece: Any = None       # foldfab.geometry.split.Piece this sheet draws, None for a whole design
 
     @property
     def placement_summary(self) -> str:
@@ -104,7 +105,7 @@ def fabricate_sheets(design: Design, device: DeviceProfile, spec: FabricationSpe
     parts = [piece_design(design, piece) for piece in pieces]
     if spec.scale == "fit":   # one scale for all the pieces, or they would not glue together
         spec = replace(spec, scale=min(place(part, device, spec)[0].scale for part in parts))
-    sheets = [fabricate(part, device, spec) for part in parts]
+    sheets = [replace(fabricate(part, device, spec), piece=piece) for piece, part in zip(pieces, parts)]
     return [_one_program(sheets, device, spec)] if one_program else sheets
 
 

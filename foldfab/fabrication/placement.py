@@ -37,6 +37,12 @@ class Placement:
         out = self.scale * (x + 1j * y)
         return out + self.origin
 
+    def invert(self, points: np.ndarray) -> np.ndarray:
+        """Map complex sheet points back to complex crease-pattern points (:meth:`apply` undone):
+        where the sheet's outline lies around the design, as the studio draws it."""
+        q = (np.asarray(points) - self.origin) / self.scale
+        return (q.imag + 1j * q.real if self.rotated else q.conj()) + self.lo
+
 
 def usable(sheet: tuple[float, float], area: tuple[float, float, float, float], margin: float,
            reach: str = "the device's plottable area") -> tuple[float, float, float, float]:

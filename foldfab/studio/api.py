@@ -61,6 +61,15 @@ def _checked(job):
     return job
 
 
+def refusal_comment(reason: str | None) -> str:
+    """TOML comment lines at the top of a job saved although ``foldfab design`` refuses it
+    ("" when it does not): the reason, control characters replaced (a comment cannot hold them)."""
+    if reason is None:
+        return ""
+    clean = re.sub(r"[\x00-\x08\x0a-\x1f\x7f]", " ", reason)
+    return f"# saved by foldfab studio although 'foldfab design' refuses it:\n# {clean}\n\n"
+
+
 class ApiError(Exception):
     """A request the studio refuses: HTTP ``status`` with ``message`` and extra JSON fields."""
 
@@ -125,6 +134,12 @@ def error_cause(message: str) -> dict[str, Any]:
         if index is not None:
             cause["point"] = int(index)
         return cause
+    layer = re.search(r"\[fabrication\.layers\]: key 'layers\.(\w+)\.(\w+)'", message)
+    if layer:
+        return {"view": "creases", "field": f"fabrication.layers.{layer.group(1)}.{layer.group(2)}"}
+    setting = re.search(r"\[fabrication\] (\w+):", message)
+    if setting:
+        return {"view": "creases", "field": f"fabrication.{setting.group(1)}"}
     if "even number of corners" in message:
         return {"view": "trajectory", "field": "trajectory.corners"}
     point = re.search(r"(profile|trajectory) (?:point|segment) (\d+)|\b(profile|trajectory): points? (\d+)", message)
@@ -195,7 +210,9 @@ class Studio:
         return {("GET", "/api/state"): self.state, ("POST", "/api/design"): self.design,
                 ("POST", "/api/open"): self.open, ("POST", "/api/files"): self.files,
                 ("POST", "/api/save"): self.save, ("POST", "/api/export"): self.export,
-                ("POST", "/api/preview"): self.preview, ("POST", "/api/queue"): self.queue}
+                ("POST", "/api/preview"): self.preview, ("POST", "/api/queue"): self.queue,
+                ("POST", "/api/device"): self.device_settings, ("POST", "/api/fabrication"): self.fabrication,
+                ("POST", "/api/print"): self.print_template}
 
     def handle(self, method: str, path: str, body: bytes = b"") -> Response:
         """Answer one API request; user mistakes are 4xx JSON, never an exception."""
@@ -344,6 +361,16 @@ class Studio:
         try:
             device = self._device(device_name)
             spec = job_spec(design.job)
+            if spec.split or spec.split_height:
+                from foldfab.fabrication.layout import reachable
+                from foldfab.fabrication.pieces import design_pieces
+
+                sheet, area, reach = reachable(design, device, spec)
+                pieces = len(design_pieces(design, spec, sheet, area, reach))
+                if pieces:
+                    return {"device": device_name, "ok": True, "sheet": list(sheet), "margin": spec.margin,
+                            "pieces": pieces, "message": f"split into {pieces} pieces for {device.name}: one "
+                                                         f"{sheet[0]:g} x {sheet[1]:g} mm sheet each"}
             placement, sheet = place(design, device, spec)
         except FoldfabError as exc:
             return {"device": device_name, "ok": False, "message": str(exc).removeprefix(f"{design.job.path}: ")}
@@ -423,18 +450,29 @@ class Studio:
         return {"files": sorted(self.display(p) for p in found)[:400]}
 
     def save(self, request: dict) -> dict:
-        """Write the job file; SVG paths are rewritten relative to its new folder."""
+        """Write the job file; SVG paths are rewritten relative to its new folder.
+
+        A design ``foldfab design`` refuses is not saved (400 with ``refused``: the reason), unless
+        the request says ``anyway``: then the reason is written as a comment at the top."""
         from foldfab.atomic import write_text
         from foldfab.job import job_data, job_to_toml, parse_job
 
         job = self._job(request)
+        refused = None
+        try:
+            self._build(request)
+        except ApiError as exc:
+            refused = str(exc).removeprefix(f"{job.path}: ")
+            if not _field(request, "anyway", bool, False):
+                raise ApiError(f"not saved: 'foldfab design' refuses this job: {refused}", refused=refused,
+                               cause=exc.extra.get("cause", {"view": "file"})) from None
         with self._write_lock:
             target = self._target(request, (".toml",))
-            text = job_to_toml(job, target.parent)
+            text = refusal_comment(refused) + job_to_toml(job, target.parent)
             saved = _checked(parse_job(text, target))
             write_text(target, text)
         return {"written": str(target), "path": str(target), "display": self.display(target),
-                "job": job_data(saved)}
+                "job": job_data(saved), "refused": refused}
 
     def export(self, request: dict) -> dict:
         """Write the crease pattern or model: FOLD, SVG, ORIPA .cp or a mesh, by the file's suffix."""
@@ -451,22 +489,50 @@ class Studio:
         return {"written": str(target), "kind": kind}
 
     def _fabricate(self, request: dict):
-        from foldfab.fabricate import fabricate
+        """Design, device and program; a split design's sheets in one program, with a pause to
+        load each new sheet (as ``foldfab plot`` makes it)."""
+        from foldfab.fabricate import fabricate_sheets
 
         device_name = _field(request, "device", str, "")
         design = self._build(request)
         device = self._device(device_name)
-        return design, device, fabricate(design, device)
+        return design, device, fabricate_sheets(design, device, one_program=True)[0]
 
     def preview(self, request: dict) -> dict:
         """The dry run: the program read back and drawn as the device would move."""
         from foldfab.programs.interpret import interpret
         from foldfab.programs.preview import render_preview
 
+        from foldfab.studio.fabrication import dry_run_strokes
+
         design, device, fab = self._fabricate(request)
-        svg = render_preview(interpret(fab.program, device, fab.plan.sheet), device, fab.plan)
+        run = interpret(fab.program, device, fab.plan.sheet)
+        svg = render_preview(run, device, fab.plan)
         return {"svg": svg, "device": device.name, "strategy": fab.spec.strategy, "sheet": list(fab.plan.sheet),
-                "program_bytes": len(fab.program.text)}
+                "program_bytes": len(fab.program.text), "strokes": dry_run_strokes(run)}
+
+    def device_settings(self, request: dict) -> dict:
+        """The fabrication panel's fields for a device: defaults, ranges, media presets."""
+        from foldfab.studio.fabrication import device_settings
+
+        return device_settings(self._device(_field(request, "device", str, "")))
+
+    def fabrication(self, request: dict) -> dict:
+        """The fabrication panel: the design on the device's sheets (pieces when split), the estimate."""
+        from foldfab.studio.fabrication import fabrication_answer
+
+        design = self._build(request)
+        return fabrication_answer(design, self._device(_field(request, "device", str, "")))
+
+    def print_template(self, request: dict) -> dict:
+        """Write the printable template (``foldfab print``): PDF, or SVG pages."""
+        from foldfab.printing.output import SUFFIXES
+        from foldfab.studio.fabrication import print_options, write_print
+
+        design = self._build(request)
+        options = print_options(design, _field(request, "paper", str, "A4"))
+        with self._write_lock:
+            return write_print(design, self._target(request, SUFFIXES), options)
 
     def queue(self, request: dict) -> dict:
         """Build the program now and add a snapshot of it to the plot queue."""

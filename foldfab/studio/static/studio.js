@@ -7,6 +7,8 @@ import { ProfileView } from "./profile.js";
 import { TrajectoryView } from "./trajectory.js";
 import { CreaseView } from "./creases.js";
 import { ModelView } from "./model.js";
+import { FabricationPanel } from "./fabrication.js";
+import { DryRun } from "./dryrun.js";
 
 const TOKEN = document.querySelector('meta[name="foldfab-token"]').content;
 const $ = (selector) => document.querySelector(selector);
@@ -63,6 +65,8 @@ class Studio {
     this.trajectory = new TrajectoryView(this, $("#view-trajectory"));
     this.creases = new CreaseView(this, $("#view-creases"));
     this.model = new ModelView(this, $("#view-model"));
+    this.fabrication = new FabricationPanel(this, $("#fabrication-panel"));
+    this.dryrun = new DryRun(this);
     this.bind();
   }
 
@@ -240,6 +244,7 @@ class Studio {
     set("#flat-angle", crease.flat_angle);
     set("#glue-tab", crease.glue_tab);
     this.trajectory.syncControls();
+    this.fabrication.sync();
   }
 
   bindNumber(selectors, assign) {
@@ -272,6 +277,7 @@ class Studio {
     $("#export-kind").addEventListener("change", () => this.setExportPath());
     $("#open").addEventListener("click", () => this.open());
     $("#save").addEventListener("click", () => this.save());
+    $("#save-anyway").addEventListener("click", () => this.save(true));
     $("#export").addEventListener("click", () => this.exportFile());
     $("#preview").addEventListener("click", () => this.preview());
     $("#queue").addEventListener("click", () => this.queue());
@@ -359,15 +365,20 @@ class Studio {
     this.message(`opened ${r.json.display}`);
   }
 
-  async save() {
-    const r = await this.write("/api/save", { job: this.job, path: this.path, target: $("#job-path").value });
+  /** Save; a job `foldfab design` refuses is saved only ``anyway`` (with the reason in a comment). */
+  async save(anyway = false) {
+    $("#save-anyway").hidden = true;
+    const r = await this.write("/api/save", { job: this.job, path: this.path, target: $("#job-path").value, anyway });
     if (r.status === 409) return this.message("not saved", true);
-    if (r.status !== 200) return this.message(this.brief(r.json.error), true);
+    if (r.status !== 200) {
+      $("#save-anyway").hidden = !r.json.refused;
+      return this.message(this.brief(r.json.error), true);
+    }
     this.path = r.json.path;
     this.job = r.json.job;
     this.commit();
     $("#job-path").value = r.json.display;
-    this.message(`saved ${r.json.written}`);
+    this.message(`saved ${r.json.written}` + (r.json.refused ? " although 'foldfab design' refuses it" : ""));
     document.body.dataset.saved = r.json.written;
     this.syncControls();
     this.edit();
@@ -393,6 +404,7 @@ class Studio {
     img.alt = "dry-run preview";
     img.src = url;
     body.appendChild(img);
+    this.dryrun.show(d, body);
     $("#preview-info").textContent = `${d.device} · ${d.strategy} · sheet ${d.sheet[0]} × ${d.sheet[1]} mm · program ${d.program_bytes} bytes`;
     $("#preview-dialog").showModal();
     this.message(`dry run for ${d.device}`);
