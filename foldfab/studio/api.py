@@ -125,6 +125,12 @@ def error_cause(message: str) -> dict[str, Any]:
     element = re.search(r"line element (\d+) \(profile point", message)
     if element:
         return {"view": "profile", "point": int(element.group(1))}
+    tool = re.search(r"\[fabrication\.layers\]: (?:unknown )?key 'layers\.(\w+)\.(\w+)'", message)
+    if tool:
+        return {"view": "creases", "field": f"fabrication.layers.{tool.group(1)}.{tool.group(2)}"}
+    setting = re.search(r"\[fabrication\] (\w+):|\[fabrication\.(\w+)\](?:\.(\w+))?", message)
+    if setting:
+        return {"view": "creases", "field": ".".join(["fabrication", *filter(None, setting.groups())])}
     key = re.search(r"\[(design|profile|trajectory|crease|fabrication)\](?:\.(\w+))?(?:\[(\d+)\])?", message)
     if key:
         table, name, index = key.groups()
@@ -134,12 +140,6 @@ def error_cause(message: str) -> dict[str, Any]:
         if index is not None:
             cause["point"] = int(index)
         return cause
-    layer = re.search(r"\[fabrication\.layers\]: key 'layers\.(\w+)\.(\w+)'", message)
-    if layer:
-        return {"view": "creases", "field": f"fabrication.layers.{layer.group(1)}.{layer.group(2)}"}
-    setting = re.search(r"\[fabrication\] (\w+):", message)
-    if setting:
-        return {"view": "creases", "field": f"fabrication.{setting.group(1)}"}
     if "even number of corners" in message:
         return {"view": "trajectory", "field": "trajectory.corners"}
     point = re.search(r"(profile|trajectory) (?:point|segment) (\d+)|\b(profile|trajectory): points? (\d+)", message)
