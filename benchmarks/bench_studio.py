@@ -10,7 +10,11 @@ the studio's "rendered" signal.  Figures per design size:
 - drawn: edit -> the four views drawn (profile, trajectory and crease canvases, WebGL frame issued);
 - frame: edit -> the next animation frame after that (the browser has painted it);
 - core:  the server's part (build with penetration check, fit, encoding), inside "drawn";
-- drag:  a 2-second mouse drag of the trajectory dot: mouse moves and updates shown per second.
+- drag:  a 2-second mouse drag of the trajectory dot: mouse moves and updates shown per second;
+- fabrication: a change in the fabrication panel (the margin, typed, with the scale "fit" so the
+  whole layout changes).  views: -> the four views redrawn, the sheet's outline placed on the
+  crease pattern among them; estimate: -> then the program made and read back as `foldfab export`
+  makes it and the layout and estimate redrawn from it; request: that last request's round trip.
 """
 
 from __future__ import annotations
@@ -30,6 +34,28 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--enable-unsafe-swiftshader"]
 SIZES = (("paper scale", 51, 20), ("20,000 faces (fine profile)", 1001, 20), ("20,000 faces (many corners)", 201, 100))
 EDITS, WARMUP = 40, 5
+FAB_EDITS, FAB_WARMUP, FAB_DEVICE = 10, 2, "graphtec-ce6000"
+
+FAB_EDIT = """async (margin) => {
+    const studio = window.studio, t0 = performance.now();
+    let core = null;
+    const post = studio.post.bind(studio);
+    studio.post = async (url, body) => {
+        const t = performance.now(), r = await post(url, body);
+        if (url === "/api/fabrication") core = performance.now() - t;
+        return r;
+    };
+    let views = null;
+    window.addEventListener("studio:rendered", () => { views = performance.now() - t0; }, {once: true});
+    const done = new Promise((resolve) => window.addEventListener("studio:fabrication", resolve, {once: true}));
+    const input = document.querySelector("#fab-margin");
+    input.value = String(margin);
+    input.dispatchEvent(new Event("input"));
+    await done;
+    await new Promise((resolve) => requestAnimationFrame(resolve));
+    studio.post = post;
+    return {views, total: performance.now() - t0, core, status: document.body.dataset.fabrication};
+}"""
 
 EDIT = """async ([index, du]) => {
     const studio = window.studio;
@@ -49,8 +75,8 @@ def job_text(points: int, corners: int) -> tuple[str, float]:
     profile, _ = wavy_design(points, corners)
     rows = ", ".join(f"[{u:.9f}, {v:.9f}]" for u, v in profile)
     step = 0.02 * float(abs(profile[:, 0]).max())
-    return (f'[profile]\npoints = [{rows}]\n[trajectory]\ntemplate = "regular"\ncorners = {corners}\nradius = 40\n',
-            step)
+    return (f'[profile]\npoints = [{rows}]\n[trajectory]\ntemplate = "regular"\ncorners = {corners}\nradius = 40\n'
+            '[fabrication]\nscale = "fit"\n', step)
 
 
 def summary(values: list[float]) -> str:
@@ -101,10 +127,28 @@ def measure(browser, folder: Path, label: str, points: int, corners: int) -> Non
         shown = int(page.evaluate("document.body.dataset.renderCount")) - before
         moves = page.evaluate("window.moves")
         print(f"  drag   {moves / seconds:6.1f} mouse moves/s, {shown / seconds:5.1f} updates shown/s")
+        measure_fabrication(page, label)
     finally:
         page.close()
         server.terminate()
         server.wait(timeout=30)
+
+
+def measure_fabrication(page, label: str) -> None:
+    """A fabrication panel change to every view and the estimate redrawn (see the docstring)."""
+    page.select_option("#device", FAB_DEVICE)
+    page.wait_for_function("Number(document.body.dataset.fabricationCount || 0) > 0 && "
+                           "!window.studio.fabrication.inflight")
+    runs = []
+    for i in range(FAB_WARMUP + FAB_EDITS):
+        result = page.evaluate(FAB_EDIT, 10 + i % 2)
+        if result["status"] != "ok":
+            raise SystemExit(f"{label}: the fabrication failed: {page.inner_text('#fab-info')}")
+        if i >= FAB_WARMUP:
+            runs.append(result)
+    print(f"  fabrication on {FAB_DEVICE} ({page.inner_text('#fab-estimate').strip('· ')}), {FAB_EDITS} changes")
+    for key, name in (("views", "views"), ("total", "estimate"), ("core", "request")):
+        print(f"    {name:<8} {summary([r[key] for r in runs])}")
 
 
 def main() -> None:

@@ -374,8 +374,10 @@ class Studio:
             placement, sheet = place(design, device, spec)
         except FoldfabError as exc:
             return {"device": device_name, "ok": False, "message": str(exc).removeprefix(f"{design.job.path}: ")}
+        from foldfab.studio.fabrication import sheet_outline
+
         w, h = placement.size
-        return {"device": device_name, "ok": True, "sheet": list(sheet), "margin": spec.margin,
+        return {"device": device_name, "ok": True, "margin": spec.margin, **sheet_outline(placement, sheet, spec.margin),
                 "scale": placement.scale, "rotated": placement.rotated, "placed": [w, h],
                 "message": f"fits {device.name}: {w:.1f} x {h:.1f} mm on a {sheet[0]:g} x {sheet[1]:g} mm sheet"
                            f"{' (turned 90 degrees)' if placement.rotated else ''}, margin {spec.margin:g} mm"}

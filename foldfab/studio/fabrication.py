@@ -56,6 +56,16 @@ def _rect(placement, offset: np.ndarray, x0: float, y0: float, x1: float, y1: fl
     return [[round(float(p.real + offset[0]), 4), round(float(p.imag + offset[1]), 4)] for p in corners]
 
 
+def sheet_outline(placement, sheet: tuple[float, float], margin: float,
+                  offset: np.ndarray | None = None) -> dict[str, Any]:
+    """Where a sheet (w, h mm) and its margin lie round the design placed on it: four corners
+    each in crease-pattern mm (the piece's ``offset`` added), as the crease view draws them."""
+    offset = np.zeros(2) if offset is None else offset
+    w, h = sheet
+    return {"sheet": [w, h], "outline": _rect(placement, offset, 0, 0, w, h),
+            "margin_outline": _rect(placement, offset, margin, margin, w - margin, h - margin) if 2 * margin < min(w, h) else None}
+
+
 def fabrication_answer(design: Design, device: DeviceProfile) -> dict[str, Any]:
     """``design`` laid out for ``device`` as ``foldfab export`` lays it out: every sheet's outline
     and margin around the design (crease-pattern mm, so the crease view draws them over the
@@ -70,17 +80,13 @@ def fabrication_answer(design: Design, device: DeviceProfile) -> dict[str, Any]:
     total = {"time_s": 0.0, "drawn_mm": 0.0, "travel_mm": 0.0, "pen_lifts": 0, "program_bytes": 0}
     for number, fab in enumerate(fabs, 1):
         times = estimate(interpret(fab.program, device, fab.plan.sheet), device)
-        w, h = fab.plan.sheet
-        margin = fab.spec.margin
         piece = fab.piece
         offset = piece.offset if piece is not None else np.zeros(2)
         box = None
         if piece is not None:
             v = piece.crease_pattern.vertices + offset
             box = [float(c) for c in (*v.min(axis=0), *v.max(axis=0))]
-        sheets.append({"number": number, "sheet": [w, h], "outline": _rect(fab.placement, offset, 0, 0, w, h),
-                       "margin": _rect(fab.placement, offset, margin, margin, w - margin, h - margin)
-                       if 2 * margin < min(w, h) else None,
+        sheets.append({"number": number, **sheet_outline(fab.placement, fab.plan.sheet, fab.spec.margin, offset),
                        "piece": box, "time_s": round(times.total, 1)})
         for name, layer in times.layers.items():
             into = layers.setdefault(name, {"drawn_mm": 0.0, "pen_lifts": 0, "time_s": 0.0})

@@ -21,12 +21,8 @@ from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
 from helpers import JOB_FOLDER
 from helpers.http import serving
+from helpers.studio import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS, open_studio, renders, wait_render
 
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 "--enable-unsafe-swiftshader"]
-TIMEOUT_MS = 20_000
 
 
 @pytest.fixture(scope="module")
@@ -67,29 +63,8 @@ def server(folder):
 
 @pytest.fixture
 def page(browser, server):
-    context = browser.new_context(viewport={"width": 1400, "height": 900})
-    page = context.new_page()
-    page.set_default_timeout(TIMEOUT_MS)
-    errors: list[str] = []
-    page.on("pageerror", lambda error: errors.append(str(error)))
-    page.goto(server.url)
-    wait_render(page, 0)
-    try:
+    with open_studio(browser, server.url) as page:
         yield page
-        assert not errors, f"JavaScript errors: {errors}"
-    finally:
-        context.close()
-
-
-def renders(page) -> int:
-    return int(page.evaluate("document.body.dataset.renderCount"))
-
-
-def wait_render(page, before: int) -> str:
-    """Wait until a response newer than ``before`` renders and no edit is pending; the status."""
-    page.wait_for_function("n => Number(document.body.dataset.renderCount) > n && document.body.dataset.status !== 'busy'"
-                           " && !window.studio.inflight", arg=before, timeout=TIMEOUT_MS)
-    return page.evaluate("document.body.dataset.status")
 
 
 def shown(page) -> dict:

@@ -64,7 +64,7 @@ def test_a_fabrication_setting_ends_in_the_saved_toml_and_the_exported_program(p
     page.fill("#fab-margin", "25")
     wait_fabrication(page, before)
     sheet = page.evaluate("window.studio.fabrication.answer.sheets[0]")
-    (x0, y0), (x1, y1) = sheet["margin"][0], sheet["margin"][2]
+    (x0, y0), (x1, y1) = sheet["margin_outline"][0], sheet["margin_outline"][2]
     assert abs(abs(x1 - x0) - (297 - 50)) < 1e-6 and abs(abs(y1 - y0) - (210 - 50)) < 1e-6
     # The sheet's outline is drawn (green) on the crease-pattern view at its corner.
     assert pixel(page, "creases", sheet["outline"][0]) == "green"

@@ -99,9 +99,13 @@ def test_the_layout_and_estimate_are_what_export_makes(studio, hexagon, folder):
     back = fab.placement.apply(np.array([complex(x, y) for x, y in sheet["outline"]]))
     w, h = fab.plan.sheet
     assert np.allclose(back, [0, w, w + 1j * h, 1j * h], atol=1e-3)
+    # The design answer's fit places the sheet the same way (the crease view draws it before the layout comes).
+    response = studio.handle("POST", "/api/design", json.dumps({"job": job, "device": "graphtec-ce6000"}).encode())
+    fit = unpack(response.body)[0]["fit"]
+    assert fit["outline"] == sheet["outline"] and fit["margin_outline"] == sheet["margin_outline"]
     # ... and it holds the whole crease pattern inside its margin.
     v = design.crease_pattern.vertices
-    xs, ys = [p[0] for p in sheet["margin"]], [p[1] for p in sheet["margin"]]
+    xs, ys = [p[0] for p in sheet["margin_outline"]], [p[1] for p in sheet["margin_outline"]]
     assert min(xs) <= v[:, 0].min() and v[:, 0].max() <= max(xs) and min(ys) <= v[:, 1].min() <= v[:, 1].max() <= max(ys)
 
 

@@ -3,7 +3,9 @@
 // template.  Every change edits studio.job.fabrication, so the design request checks it as every
 // command does; once that design is drawn, the server lays it out for the chosen device as
 // `foldfab export` would (/api/fabrication): the sheets (and pieces, when split) are drawn over the
-// crease-pattern view and the estimate is shown here.  One such request is in flight at a time.
+// crease-pattern view and the estimate is shown here.  Until that answer arrives the view draws the
+// sheet from the design answer's fit (placed as the program will place it), so the placement
+// follows every edit as fast as the views do.  One such request is in flight at a time.
 // Each applied answer bumps <body data-fabrication-count>.
 
 const $ = (selector) => document.querySelector(selector);
@@ -200,13 +202,15 @@ export class FabricationPanel {
 
   // --- placement and estimate
 
-  /** Ask for the layout once the design is valid (one request in flight; the latest state wins). */
+  /** Ask for the layout once the design is valid and no edit is pending (a drag asks once it
+   * rests); one request in flight, the latest state wins. */
   async refresh() {
-    if (!this.settings || !this.settings.layers || !$("#fabrication").open || this.studio.error || !this.studio.shown) return;
+    if (!this.settings || !this.settings.layers || !$("#fabrication").open || this.studio.error || !this.studio.shown ||
+        document.body.dataset.status === "busy") return;
     if (this.inflight) { this.again = true; return; }
     this.inflight = true;
     this.again = false;
-    const t0 = performance.now(), epoch = this.studio.epoch, device = this.settings.device;
+    const t0 = performance.now(), epoch = this.studio.epoch, device = this.settings.device, applied = this.studio.applied;
     document.body.dataset.fabrication = "busy";
     let r;
     try {
@@ -217,7 +221,7 @@ export class FabricationPanel {
     this.inflight = false;
     if (this.again) return this.refresh();
     if (epoch !== this.studio.epoch || device !== $("#device").value) return;
-    this.answer = r.status === 200 ? r.json : null;
+    this.answer = r.status === 200 ? { ...r.json, applied } : null;
     this.show(r.status === 200 ? null : r.json);
     const creases = this.studio.creases;
     if (creases.view.auto) creases.fit(); else creases.view.draw();
@@ -268,9 +272,10 @@ export class FabricationPanel {
     creases.draw = (view, ctx) => { draw(view, ctx); this.drawSheets(view, ctx); };
     creases.fit = () => {
       const shown = this.studio.shown;
-      if (!shown || !this.answer) return fit();
+      const sheets = this.sheets();
+      if (!shown || !sheets.length) return fit();
       const box = [...shown.cpBox];
-      for (const sheet of this.answer.sheets) for (const [x, y] of sheet.outline) {
+      for (const sheet of sheets) for (const [x, y] of sheet.outline) {
         box[0] = Math.min(box[0], x); box[1] = Math.min(box[1], y);
         box[2] = Math.max(box[2], x); box[3] = Math.max(box[3], y);
       }
@@ -278,15 +283,25 @@ export class FabricationPanel {
     };
   }
 
+  /** The sheets to draw: the layout's, unless the design shown is newer and its fit places it whole. */
+  sheets() {
+    const shown = this.studio.shown, fit = shown && shown.fit;
+    if (!this.settings || (fit && fit.device !== this.settings.device)) return [];
+    if (this.answer && this.answer.applied === this.studio.applied) return this.answer.sheets;
+    if (fit && fit.outline) return [{ number: 1, sheet: fit.sheet, outline: fit.outline, margin_outline: fit.margin_outline, piece: null }];
+    return fit && fit.pieces && this.answer ? this.answer.sheets : [];   // split: the last layout until the new one
+  }
+
   drawSheets(view, ctx) {
-    if (!this.answer || !this.studio.shown) return;
+    const sheets = this.sheets();
+    if (!sheets.length || !this.studio.shown) return;
     const path = (points) => {
       ctx.beginPath();
       points.forEach(([x, y], i) => { const [sx, sy] = view.toScreen(x, y); if (i) ctx.lineTo(sx, sy); else ctx.moveTo(sx, sy); });
       ctx.closePath();
     };
     ctx.save();
-    for (const sheet of this.answer.sheets) {
+    for (const sheet of sheets) {
       if (sheet.piece) {
         const [x0, y0, x1, y1] = sheet.piece;
         path([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]);
@@ -298,8 +313,8 @@ export class FabricationPanel {
       ctx.lineWidth = 1.5;
       ctx.setLineDash([]);
       ctx.stroke();
-      if (sheet.margin) {
-        path(sheet.margin);
+      if (sheet.margin_outline) {
+        path(sheet.margin_outline);
         ctx.setLineDash([5, 4]);
         ctx.lineWidth = 1;
         ctx.stroke();
@@ -307,7 +322,7 @@ export class FabricationPanel {
       const [sx, sy] = view.toScreen(...sheet.outline[3]);
       ctx.fillStyle = "#2e7d32";
       ctx.font = "11px system-ui, sans-serif";
-      ctx.fillText(this.answer.sheets.length > 1 ? `sheet ${sheet.number}` : `${fmt(sheet.sheet[0])} × ${fmt(sheet.sheet[1])} mm`,
+      ctx.fillText(sheets.length > 1 ? `sheet ${sheet.number}` : `${fmt(sheet.sheet[0])} × ${fmt(sheet.sheet[1])} mm`,
         sx + 4, sy - 4);
     }
     ctx.restore();
