@@ -455,19 +455,26 @@ class Studio:
         """Write the job file; SVG paths are rewritten relative to its new folder.
 
         A design ``foldfab design`` refuses is not saved (400 with ``refused``: the reason), unless
-        the request says ``anyway``: then the reason is written as a comment at the top."""
-        from foldfab.atomic import write_text
-        from foldfab.job import job_data, job_to_toml, parse_job
-
+        the request says ``anyway``: then the reason is written as a comment at the top.  A design
+        too large for the studio to build is saved unchecked (the command line's limit is higher)."""
         job = self._job(request)
         refused = None
         try:
             self._build(request)
         except ApiError as exc:
+            if STUDIO_LIMIT_ADVICE in str(exc):
+                return self._write_job(request, job, None)
             refused = str(exc).removeprefix(f"{job.path}: ")
             if not _field(request, "anyway", bool, False):
                 raise ApiError(f"not saved: 'foldfab design' refuses this job: {refused}", refused=refused,
                                cause=exc.extra.get("cause", {"view": "file"})) from None
+        return self._write_job(request, job, refused)
+
+    def _write_job(self, request: dict, job, refused: str | None) -> dict:
+        """Write ``job`` to the request's target, ``refused`` (the reason) as a comment at the top."""
+        from foldfab.atomic import write_text
+        from foldfab.job import job_data, job_to_toml, parse_job
+
         with self._write_lock:
             target = self._target(request, (".toml",))
             text = refusal_comment(refused) + job_to_toml(job, target.parent)
@@ -504,7 +511,6 @@ class Studio:
         """The dry run: the program read back and drawn as the device would move."""
         from foldfab.programs.interpret import interpret
         from foldfab.programs.preview import render_preview
-
         from foldfab.studio.fabrication import dry_run_strokes
 
         design, device, fab = self._fabricate(request)

@@ -264,3 +264,12 @@ def test_the_dry_run_strokes_are_the_program_read_back(studio, hexagon):
         points = np.array(strokes["points"][2 * strokes["starts"][k]:2 * strokes["starts"][k + 1]]).reshape(-1, 2)
         assert np.allclose(points, run.strokes[k].points, atol=1e-3)
         assert strokes["layers"][strokes["layer"][k]] == run.strokes[k].layer
+
+
+def test_a_design_too_large_for_the_studio_is_saved_unchecked(studio, hexagon, folder, monkeypatch):
+    import foldfab.studio.api as api
+
+    monkeypatch.setattr(api, "STUDIO_MAX_FACES", 10)   # the hexagon has 32 faces: the command line builds it
+    status, answer = call(studio, "/api/save", {"job": hexagon, "target": str(folder / "large.toml")})
+    assert status == 200 and answer["refused"] is None
+    assert not (folder / "large.toml").read_text().startswith("#")
