@@ -129,6 +129,28 @@ def test_an_idle_plotter_heartbeats_and_a_silent_one_is_offline_since_its_last_h
     assert listed["fast"].state == "idle"
 
 
+def test_a_job_heartbeat_and_an_idle_worker_keep_the_plotter_online(store):
+    worker = elsewhere("w")
+    store.register_plotter("pi-a", "sim://a", None, worker, 30)
+    store.add([NewJob(snapshot(), "sim://a")])
+    store.claim(worker, 30, port="sim://a", plotter="pi-a")
+    before = store.plotters()[0].seen
+    wait_for(lambda: time.time() > before)
+    store.heartbeat(1, worker, 30, acked_bytes=3)
+    assert store.plotters()[0].seen > before
+    store.finish(1, worker, "done", "drawn")
+    follower = Worker(store, Terminal(), WorkerOptions(port="sim://b", name="pi-b", mode="follow", heartbeat=0.1,
+                                                       lease=30, poll=0.2))
+    thread = threading.Thread(target=follower.run, daemon=True)
+    thread.start()
+    wait_for(lambda: states(store).get("pi-b") == ("idle", None))
+    registered = {p.name: p for p in store.plotters()}["pi-b"].seen
+    wait_for(lambda: {p.name: p for p in store.plotters()}["pi-b"].seen > registered)  # its idle heartbeat
+    follower.stop()
+    thread.join(60)
+    assert states(store)["pi-b"] == ("offline", None)
+
+
 def test_a_plotter_whose_worker_process_on_this_host_is_gone_is_offline_at_once(store):
     process = subprocess.Popen([sys.executable, "-c", "pass"])
     process.wait()
