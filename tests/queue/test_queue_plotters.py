@@ -182,34 +182,74 @@ def test_a_name_is_held_by_one_online_worker(store):
 
 
 def test_claims_take_jobs_for_their_plotter_and_profile_only(store):
-    pi_a, pi_b, pi_c = elsewhere("a"), elsewhere("b"), elsewhere("c")
+    pi_a, pi_b, pi_c, pi_d = elsewhere("a"), elsewhere("b"), elsewhere("c"), elsewhere("d")
     store.register_plotter("pi-a", "sim://a", "graphtec-ce6000", pi_a, 30)
     store.register_plotter("pi-b", "sim://b", "graphtec-ce6000", pi_b, 30)
     store.register_plotter("pi-c", "sim://c", "hp7475a", pi_c, 30)
+    store.register_plotter("pi-d", "sim://d", None, pi_d, 30)  # its worker was given no --device
     ids = store.add([NewJob(snapshot(), "", plotter="pi-b"),                          # 1: only pi-b
                      NewJob(snapshot("hp7475a"), "/dev/ttyUSB0", any_plotter=True),  # 2: any hp7475a
                      NewJob(snapshot(), "/dev/ttyUSB0", any_plotter=True),           # 3: any ce6000
-                     NewJob(snapshot(), "sim://a")])                                 # 4: the plotter at sim://a
-    assert ids == [1, 2, 3, 4]
+                     NewJob(snapshot(), "sim://a"),                                  # 4: the plotter at sim://a
+                     NewJob(snapshot(), "", -1, any_plotter=True)])                  # 5: any ce6000, last
+    assert ids == [1, 2, 3, 4, 5]
     assert store.job(1).port == "sim://b" and store.job(1).target == "pi-b"
     mine = {"pi-a": ("graphtec-ce6000", "sim://a"), "pi-b": ("graphtec-ce6000", "sim://b"),
-            "pi-c": ("hp7475a", "sim://c")}
-    runnable = {name: [j.id for j in store.runnable(device, port, plotter=name)] for name, (device, port) in mine.items()}
-    assert runnable == {"pi-a": [3, 4], "pi-b": [1, 3], "pi-c": [2]}
+            "pi-c": ("hp7475a", "sim://c"), "pi-d": (None, "sim://d")}
+
+    def runnable():
+        return {name: [j.id for j in store.runnable(device, port, plotter=name)] for name, (device, port) in mine.items()}
+    assert runnable() == {"pi-a": [3, 4, 5], "pi-b": [1, 3, 5], "pi-c": [2], "pi-d": []}
     assert [j.id for j in store.runnable()] == [2, 3, 4]  # a worker without a port: the jobs that name one
     claim = store.claim(pi_a, 30, *mine["pi-a"], plotter="pi-a")
     assert (claim.job.id, claim.job.port, claim.job.plotter, claim.job.any_plotter) == (3, "sim://a", "pi-a", False)
     assert "on plotter pi-a at sim://a" in store.events(3)[-1].message
+    assert runnable()["pi-a"] == []  # pi-a is busy: not even a job for any plotter of its profile
     assert store.claim(pi_b, 30, *mine["pi-b"], plotter="pi-b").job.id == 1
-    assert store.claim(pi_b, 30, *mine["pi-b"], plotter="pi-b") is None  # busy: one job per plotter
+    assert store.claim(pi_b, 30, *mine["pi-b"], plotter="pi-b") is None
     store.heartbeat(3, pi_a, 30, acked_bytes=12)
     store.finish(3, pi_a, "interrupted", "the host lost power")
-    # the half-drawn sheet is on pi-a: no other plotter of its profile takes it, and pi-a takes it first
     store.finish(1, pi_b, "done", "drawn")
-    assert store.claim(pi_b, 30, *mine["pi-b"], plotter="pi-b") is None
+    # the half-drawn sheet is on pi-a: no other plotter of its profile takes it, and pi-a takes it first
+    assert store.claim(pi_b, 30, *mine["pi-b"], plotter="pi-b").job.id == 5
     assert store.claim(pi_a, 30, *mine["pi-a"], plotter="pi-a").job.id == 3
     assert store.claim(pi_c, 30, *mine["pi-c"], plotter="pi-c").job.id == 2
     assert store.claim(WorkerId.current(), 30) is None  # job 4: sim://a is busy
+
+
+def _claim_on(location: str, port: str, held: list, errors: list, lock: threading.Lock) -> None:
+    """A worker of a plotter at ``port``: claim, hold, finish, until nothing is left; a second
+    job held at the port at once is an error."""
+    store = open_queue(location, wait=30)
+    worker = WorkerId.current()
+    try:
+        while claim := store.claim(worker, 30, "graphtec-ce6000", port):
+            with lock:
+                if held:
+                    errors.append(f"jobs {held[0]} and {claim.job.id} at {port} at once")
+                held.append(claim.job.id)
+            store.log(claim.job.id, "test", "drawing")
+            with lock:
+                held.remove(claim.job.id)
+            store.finish(claim.job.id, worker, "done", "drawn")
+    finally:
+        store.close()
+
+
+def test_racing_workers_of_one_plotter_never_hold_two_jobs_for_any_plotter_of_its_profile(store):
+    """The jobs for any plotter name different ports (their profiles' defaults) until claimed: the
+    plotter a claim takes is the worker's, whatever the job's port says."""
+    store.add([NewJob(snapshot(), f"/dev/ttyUSB{i % 5}" if i % 5 else "", any_plotter=True) for i in range(40)])
+    held, errors, lock = [], [], threading.Lock()
+    threads = [threading.Thread(target=_claim_on, args=(where(store), "sim://shared", held, errors, lock))
+               for _ in range(6)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(300)
+    assert errors == []
+    assert [j.state for j in store.jobs()] == ["done"] * 40
+    assert {j.port for j in store.jobs()} == {"sim://shared"}
 
 
 def test_a_job_for_an_unknown_plotter_or_one_of_another_profile_is_refused(store, capsys):
