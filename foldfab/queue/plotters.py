@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import time
 from contextlib import AbstractContextManager
-from typing import Any
+from typing import Any, Callable
 
 from foldfab.errors import FoldfabError
 from foldfab.queue.records import JobRecord, PlotterRecord, WorkerId, plotter_name
@@ -32,15 +32,9 @@ class PlotterRegistry:
 
     location: str
     _host: str
-
-    def _read(self) -> AbstractContextManager[Any]:
-        raise NotImplementedError
-
-    def _write(self, create: bool = False) -> AbstractContextManager[Any]:
-        raise NotImplementedError
-
-    def _exists(self) -> bool:
-        raise NotImplementedError
+    _read: Callable[[], AbstractContextManager[Any]]
+    _write: Callable[..., AbstractContextManager[Any]]
+    _exists: Callable[[], bool]
 
     def _held_jobs(self, db: Any) -> dict[str, JobRecord]:
         """The running and waiting jobs, by the worker that holds each."""

@@ -285,6 +285,11 @@ def test_queue_move_to_a_plotter_of_the_same_profile_only(store, capsys):
     assert code == 0 and "resumes at byte 12" in out and "before any other job at pi-b" in out
     assert (store.job(1).port, store.job(1).plotter) == ("sim://b", "pi-b")
     assert "on plotter pi-b at sim://b (was pi-a at sim://a)" in store.events(1)[-1].message
+    store.cancel(1)
+    assert run_cli(capsys, "queue", "move", "1", "--port", "sim://z", *queue)[0] == 0  # a port: no plotter by name
+    assert (store.job(1).port, store.job(1).plotter) == ("sim://z", None)
+    store.cancel(1)
+    run_cli(capsys, "queue", "move", "1", "--plotter", "pi-b", *queue)
     assert store.claim(pi_a, 30, "graphtec-ce6000", "sim://a", plotter="pi-a") is None
     assert store.claim(pi_b, 30, "graphtec-ce6000", "sim://b", plotter="pi-b").job.acked_bytes == 12
 
