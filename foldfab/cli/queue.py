@@ -43,8 +43,8 @@ def cmd_queue_add(args: argparse.Namespace) -> int:
         numbers = [next(ids) for _ in range(item.copies)]
         label = f"job {numbers[0]}" if len(numbers) == 1 else f"jobs {numbers[0]}-{numbers[-1]}"
         where = (f"on plotter {item.plotter}" if item.plotter else f"at {item.port}" if not item.any_plotter else
-                 f"for any plotter of it (foldfab queue run --device {item.snapshot.device} --port PORT)"
-                 + (f", or at {item.port}" if item.port else ""))
+                 f"for any plotter of it (foldfab queue run --device {item.snapshot.device} --port PORT"
+                 + (f"; without --port: at {item.port})" if item.port else ")"))
         print(f"queued {label}: {item.snapshot.name} on {item.snapshot.device} {where}, "
               f"{len(item.snapshot.program.text)} bytes, priority {item.priority} ({store.location})")
     return 0
