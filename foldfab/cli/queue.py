@@ -33,18 +33,19 @@ def cmd_queue_add(args: argparse.Namespace) -> int:
         design, device, fab = _fabricate(argparse.Namespace(job=job, device=args.device, scale=args.scale,
                                                             allow_penetration=args.allow_penetration,
                                                             max_faces=args.max_faces, split=args.split))
-        port = args.port or device.port
-        if not port:
-            raise FoldfabError(f"{device.name} has no port: give --port PORT (a serial port such as /dev/ttyUSB0, "
-                               f"or a simulated plotter such as sim://{device.name}), or set port in {device.source}")
         snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
-        new.append(NewJob(snapshot, port, args.priority, args.copies))
+        # no --port nor --plotter: any plotter of the profile (a worker without a port: the profile's)
+        new.append(NewJob(snapshot, args.port or device.port or "", args.priority, args.copies, args.plotter,
+                          any_plotter=not (args.port or args.plotter)))
     store = _queue_store(args)
     ids = iter(store.add(new))
     for item in new:
         numbers = [next(ids) for _ in range(item.copies)]
         label = f"job {numbers[0]}" if len(numbers) == 1 else f"jobs {numbers[0]}-{numbers[-1]}"
-        print(f"queued {label}: {item.snapshot.name} on {item.snapshot.device} at {item.port}, "
+        where = (f"on plotter {item.plotter}" if item.plotter else f"at {item.port}" if not item.any_plotter else
+                 f"for any plotter of it (foldfab queue run --device {item.snapshot.device} --port PORT"
+                 + (f"; without --port: at {item.port})" if item.port else ")"))
+        print(f"queued {label}: {item.snapshot.name} on {item.snapshot.device} {where}, "
               f"{len(item.snapshot.program.text)} bytes, priority {item.priority} ({store.location})")
     return 0
 
@@ -53,7 +54,7 @@ def format_job_line(job) -> str:
     """One row of ``foldfab queue list``."""
     name = job.name if job.copies == 1 else f"{job.name} ({job.copy}/{job.copies})"
     state = job.state + ("*" if job.cancel_requested else "")
-    port = job.port if len(job.port) <= 24 else job.port[:23] + "~"
+    port = job.target if len(job.target) <= 24 else job.target[:23] + "~"
     return f"{job.id:>5} {state:<12} {job.priority:>4} {job.percent:>5.1f}%  {job.device:<16} {port:<24} {name}"
 
 
@@ -66,12 +67,12 @@ def cmd_queue_list(args: argparse.Namespace) -> int:
     elif not jobs:
         print(f"no {args.state + ' ' if args.state else ''}jobs in {store.location}")
     else:
-        lines = [f"{'ID':>5} {'STATE':<12} {'PRI':>4} {'DONE':>6}  {'DEVICE':<16} {'PORT':<24} NAME"]
+        lines = [f"{'ID':>5} {'STATE':<12} {'PRI':>4} {'DONE':>6}  {'DEVICE':<16} {'PLOTTER/PORT':<24} NAME"]
         lines.extend(format_job_line(job) for job in jobs)
         if any(job.cancel_requested for job in jobs):
             lines.append("* cancel requested: the worker stops the plotter")
-        if any(len(job.port) > 24 for job in jobs):
-            lines.append("~ port shortened: foldfab queue show ID has it whole")
+        if any(len(job.target) > 24 for job in jobs):
+            lines.append("~ plotter or port shortened: foldfab queue show ID has it whole")
         print("\n".join(lines))
     return 0
 
@@ -82,7 +83,8 @@ def format_job(job, events) -> str:
     lines = [f"job {job.id}    {job.name}{copy}",
              f"state        {job.state}" + (" (cancel requested)" if job.cancel_requested else "")
              + (f": {job.reason}" if job.reason else ""),
-             f"device       {job.device} at {job.port}",
+             f"device       {job.device} at {job.port}"
+             + (f" (plotter {job.plotter})" if job.plotter else " (or any plotter of it)" if job.any_plotter else ""),
              f"priority     {job.priority}",
              f"job file     {job.job_path} (as it was when queued)",
              f"progress     {job.percent:.1f}% done"
@@ -118,8 +120,8 @@ def cmd_queue_cancel(args: argparse.Namespace) -> int:
 
 def cmd_queue_retry(args: argparse.Namespace) -> int:
     """Queue a failed, cancelled or interrupted job again."""
-    job = _queue_store(args).retry(args.id, restart=args.restart, port=args.port)
-    where = (f"resumes at byte {job.acked_bytes} of {job.program_bytes}, before any other job at {job.port} "
+    job = _queue_store(args).retry(args.id, restart=args.restart, port=args.port, plotter=args.plotter)
+    where = (f"resumes at byte {job.acked_bytes} of {job.program_bytes}, before any other job at {job.target} "
              "(--restart: from the start, new sheet)" if job.acked_bytes else "runs from the start")
     print(f"job {job.id} queued again: {where}")
     return 0
@@ -230,7 +232,7 @@ def cmd_queue_run(args: argparse.Namespace) -> int:
         from foldfab.errors import FoldfabError
         from foldfab.queue.worker import Worker, WorkerOptions, rehearse
 
-        options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease)
+        options = WorkerOptions(device=args.device, port=args.port, mode=args.mode, lease=args.lease, name=args.name)
         store, console = _queue_store(args), QueueConsole(rehearsal=args.dry_run)
         if args.dry_run:
             rehearsing[0] = True
@@ -271,6 +273,56 @@ def _seconds_from(low: float, what: str):
     return seconds
 
 
+def format_plotter_state(plotter) -> str:
+    """What a plotter does, as ``foldfab queue plotters`` says it."""
+    job = plotter.job
+    if plotter.state == "offline":
+        why = "its worker stopped" if plotter.stopped is not None else "its last heartbeat: the worker is gone"
+        return f"offline since {_when(plotter.offline_since)} ({why})"
+    if job is None:
+        return "idle"
+    if plotter.state == "paused":
+        return (f"paused in job {job.id} at {job.percent:.0f}%: waits for the operator (a flip, a tool or the "
+                f"next sheet; foldfab queue continue {job.id})")
+    return f"drawing job {job.id} at {job.percent:.0f}%"
+
+
+def cmd_queue_plotters(args: argparse.Namespace) -> int:
+    """The registered plotters and what each does now (read from the queue only)."""
+    store = _queue_store(args)
+    plotters = store.plotters()
+    if args.json:
+        print(json.dumps([plotter.as_dict() for plotter in plotters], indent=1))
+        return 0
+    if not plotters:
+        print(f"no plotters registered in {store.location} (a worker registers its plotter when it starts: "
+              "foldfab queue run --port PORT --name NAME --device PROFILE)")
+        return 0
+    rows = [("NAME", "HOST", "PROFILE", "PORT", "STATE")]
+    for plotter in plotters:
+        rows.append(tuple(_shown(text) for text in (plotter.name, plotter.host, plotter.device or "-", plotter.port))
+                    + (format_plotter_state(plotter),))
+    widths = [min(max(len(row[i]) for row in rows), 40) for i in range(4)]
+    print("\n".join("  ".join(cell.ljust(width) for cell, width in zip(row, widths)) + "  " + row[4]
+                    for row in rows))
+    return 0
+
+
+def _shown(text: str) -> str:
+    """A name from the queue as it can be shown on a terminal: control characters escaped."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def _plotter(text: str) -> str:
+    from foldfab.errors import FoldfabError
+    from foldfab.queue.records import plotter_name
+
+    try:
+        return plotter_name(text)
+    except FoldfabError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _port(text: str) -> str:
     if not text.strip():
         raise argparse.ArgumentTypeError("expected a serial port or pyserial URL (such as /dev/ttyUSB0 or "
@@ -302,8 +354,12 @@ def add_commands(sub) -> None:
                                           "is added) and queue a snapshot: later edits of the files change nothing.")
     add.add_argument("jobs", nargs="+", metavar="JOB.toml", help="job files")
     add.add_argument("--device", required=True, metavar="NAME", help="device profile (name or .toml path)")
-    add.add_argument("--port", type=_port, metavar="PORT",
-                     help="serial port or pyserial URL (default: the profile's port)")
+    target = add.add_mutually_exclusive_group()
+    target.add_argument("--port", type=_port, metavar="PORT",
+                        help="only the plotter at this serial port or pyserial URL (default: any plotter of the "
+                             "profile; a worker without --port runs it at the profile's port)")
+    target.add_argument("--plotter", type=_plotter, metavar="NAME",
+                        help="only this registered plotter (foldfab queue plotters lists them)")
     add.add_argument("--copies", type=_int_from(1, MAX_COPIES, "expected copies"), default=1, metavar="N",
                      help=f"sheets of each job, up to {MAX_COPIES} (default 1)")
     add.add_argument("--priority", type=_int_from(*PRIORITIES, "expected a priority"), default=0, metavar="P",
@@ -336,13 +392,23 @@ def add_commands(sub) -> None:
         if name in ("retry", "move"):
             action.add_argument("--restart", action="store_true",
                                 help="from the start on a new sheet, not from the last acknowledged stroke")
-            action.add_argument("--port", type=_port, metavar="PORT", required=name == "move",
+            target = action.add_mutually_exclusive_group(required=name == "move")
+            target.add_argument("--port", type=_port, metavar="PORT",
                                 help="on this port from now on (the plotter's new device path, or another "
                                      "plotter of the same model)")
+            target.add_argument("--plotter", type=_plotter, metavar="NAME",
+                                help="on this registered plotter of the job's profile from now on")
 
     clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
     clear.add_argument("--done", action="store_true", required=True, help="delete every done job")
     clear.set_defaults(func=cmd_queue_clear)
+
+    plotters = commands.add_parser("plotters", parents=[common], help="list the plotters and what each does",
+                                   description="The plotters the workers registered (foldfab queue run --port PORT "
+                                               "--name NAME): name, host, profile, port, and state: idle, drawing "
+                                               "a job, paused in a job, or offline since when.")
+    plotters.add_argument("--json", action="store_true", help="print JSON")
+    plotters.set_defaults(func=cmd_queue_plotters)
 
     migrate = commands.add_parser("migrate", parents=[common], help="move every job of another queue into this one",
                                   description="Move the jobs of another queue (such as the SQLite file of one "
@@ -357,8 +423,12 @@ def add_commands(sub) -> None:
                                           "progress display of foldfab plot.  Run one worker per plotter (or "
                                           "several on one queue: they never run the same job).  A job whose "
                                           "worker died is resumed from its last acknowledged stroke.")
-    run.add_argument("--device", metavar="NAME", help="only jobs for this device profile")
-    run.add_argument("--port", type=_port, metavar="PORT", help="only jobs for this port")
+    run.add_argument("--device", metavar="PROFILE", help="only jobs for this device profile (the plotter's)")
+    run.add_argument("--port", type=_port, metavar="PORT",
+                     help="the plotter's port: registers the plotter and takes the jobs at this port, for it by "
+                          "name, and for any plotter of its --device (without: every job, each at its own port)")
+    run.add_argument("--name", type=_plotter, metavar="NAME",
+                     help="the plotter's name, unique in the queue (default HOST:PORT; needs --port)")
     modes = run.add_mutually_exclusive_group()
     modes.add_argument("--until-empty", dest="mode", action="store_const", const="until-empty",
                        help="stop when no job is runnable (the default)")

@@ -211,7 +211,8 @@ class PostgresQueueStore(SqlQueueStore):
     def _next_runnable(self, db: _Transaction, params: dict) -> tuple | None:
         skipped = list(params["exclude"])
         for _ in range(CLAIM_TRIES):
-            row = db.execute(f"SELECT j.id, j.port FROM jobs j JOIN snapshots s ON s.id = j.snapshot_id "
+            row = db.execute(f"SELECT j.id, COALESCE(:port, j.port) FROM jobs j "  # the port the job runs at
+                             f"JOIN snapshots s ON s.id = j.snapshot_id "
                              f"{self.queries.runnable_where} {self.queries.claim_order} LIMIT 1 {self.skip_locked}",
                              params | {"exclude": skipped}).fetchone()
             if row is None:

@@ -59,16 +59,22 @@ MAX_COPIES = 1000
 """Most sheets of one job a single ``add`` queues."""
 MAX_JOB_ID = 2 ** 63 - 1
 """The largest job id: the largest 64-bit signed integer, SQLite's and PostgreSQL's ``bigint``."""
+MAX_PLOTTER_NAME = 200
+"""Longest plotter name (the default, ``host:port``, holds a ``/dev/serial/by-id/...`` path)."""
 
 
 @dataclass(frozen=True)
 class NewJob:
-    """A snapshot to add ``copies`` times on ``port`` with ``priority``."""
+    """A snapshot to add ``copies`` times on ``port`` with ``priority``; ``plotter``: only for that
+    registered plotter (its port, whatever ``port`` says); ``any_plotter``: for any plotter of the
+    snapshot's profile (``port``, if any, is where a worker without a port of its own runs it)."""
 
     snapshot: Snapshot
     port: str
     priority: int = 0
     copies: int = 1
+    plotter: str | None = None
+    any_plotter: bool = False
 
 
 @dataclass(frozen=True)
@@ -99,6 +105,15 @@ class JobRecord:
     """Length the plotter has drawn of the program's strokes (acknowledged)."""
     drawn_total_mm: float
     """Length of all the program's strokes; 0 until a worker has started the job."""
+    plotter: str | None = None
+    """The plotter the job is for (added or moved with ``--plotter``), or ran on (a registered one)."""
+    any_plotter: bool = False
+    """For any plotter of its profile, until one claims it."""
+
+    @property
+    def target(self) -> str:
+        """Where the job runs, as listed: its plotter's name, ``any`` plotter of its profile, or its port."""
+        return self.plotter or ("any" if self.any_plotter else self.port)
 
     @property
     def percent(self) -> float:
@@ -110,6 +125,58 @@ class JobRecord:
         """Plain data for JSON output."""
         return {field: getattr(self, field) for field in self.__dataclass_fields__} | {
             "percent": round(self.percent, 1)}
+
+
+@dataclass(frozen=True)
+class PlotterRecord:
+    """A plotter as its worker registered it, and what it does now."""
+
+    name: str
+    host: str
+    port: str
+    device: str | None
+    """Its device profile; None: its worker was started without ``--device``."""
+    worker: str
+    started: float
+    seen: float
+    """Its worker's last heartbeat (wall clock)."""
+    lease: float
+    stopped: float | None
+    """When its worker stopped cleanly; None while it runs."""
+    offline_since: float | None
+    """None while its worker runs; else when it stopped, or its last heartbeat (older than the lease)."""
+    job: JobRecord | None
+    """The job its worker holds (running or waiting at a pause)."""
+
+    @property
+    def state(self) -> str:
+        """``offline``, ``paused`` (at a pause of its job: the flip of the sheet), ``drawing`` or ``idle``."""
+        if self.offline_since is not None:
+            return "offline"
+        if self.job is not None:
+            return "paused" if self.job.state == "waiting" else "drawing"
+        return "idle"
+
+    def as_dict(self) -> dict:
+        """Plain data for JSON output."""
+        fields = {name: getattr(self, name) for name in self.__dataclass_fields__ if name != "job"}
+        return fields | {"state": self.state, "job": self.job.id if self.job else None,
+                         "percent": round(self.job.percent, 1) if self.job else None}
+
+
+def plotter_name(text: str) -> str:
+    """``text`` if it can name a plotter (1 to :data:`MAX_PLOTTER_NAME` printable characters, no
+    space at either end): names are listed on terminals and typed back; else FoldfabError."""
+    if 0 < len(text) <= MAX_PLOTTER_NAME and text.isprintable() and text.strip() == text:
+        return text
+    shown = repr(text[:40]) + (f"... ({len(text)} characters)" if len(text) > 40 else "")
+    raise FoldfabError(f"plotter name {shown}: expected 1 to {MAX_PLOTTER_NAME} printable characters (no control "
+                       "characters, no space at either end), such as pi-a or cutter-2")
+
+
+def default_plotter_name(host: str, port: str) -> str:
+    """A worker's plotter name when it is given none: ``host:port``, unique in a farm."""
+    return f"{host}:{port}"
 
 
 @dataclass(frozen=True)

@@ -99,6 +99,15 @@ STEPS: tuple[tuple[Table | AddColumn | Index, ...], ...] = (
     # version 3: the length drawn and in all, so that list shows the share done as plot does
     (AddColumn("jobs", Column("drawn_mm", "real", "NOT NULL DEFAULT 0")),
      AddColumn("jobs", Column("drawn_total_mm", "real", "NOT NULL DEFAULT 0"))),
+    # version 4: plotters registered by their workers (name, host, port, profile, heartbeat); a job
+    # targeted at one plotter (by name), or at any plotter of its profile until one claims it
+    (Table("plotters", (
+        Column("name", "text", "NOT NULL PRIMARY KEY"), Column("host", "text", "NOT NULL"),
+        Column("port", "text", "NOT NULL"), Column("device", "text"), Column("worker", "text", "NOT NULL"),
+        Column("worker_pid", "integer", "NOT NULL"), Column("started", "real", "NOT NULL"),
+        Column("seen", "real", "NOT NULL"), Column("lease", "real", "NOT NULL"), Column("stopped", "real"))),
+     AddColumn("jobs", Column("plotter", "text")),
+     AddColumn("jobs", Column("any_plotter", "integer", "NOT NULL DEFAULT 0"))),
 )
 VERSION = len(STEPS)
 

@@ -20,12 +20,14 @@ from typing import Any, Sequence
 from foldfab.errors import FoldfabError
 from foldfab.queue.records import (ACTIVE, FINISHED, MAX_COPIES, MAX_JOB_ID, PRIORITIES, RUNNABLE, Claim, Control,
                                    Event, JobRecord, NewJob, WorkerId)
+from foldfab.queue.plotters import PlotterRegistry
 from foldfab.queue.snapshot import Snapshot, drawn_length, program_from, program_meta
 
 
 _JOB_COLUMNS = """j.id, s.name, s.job_path, s.device, j.port, j.priority, j.copy, j.copies,
     {state}, j.created, j.updated, j.worker, j.lease_expires, j.acked_bytes, s.program_bytes,
-    j.progress, j.pauses_done, j.cancel_requested, j.attempts, {reason}, j.drawn_mm, j.drawn_total_mm"""
+    j.progress, j.pauses_done, j.cancel_requested, j.attempts, {reason}, j.drawn_mm, j.drawn_total_mm,
+    j.plotter, j.any_plotter"""
 # A resume: a job whose sheet is half drawn on its plotter, interrupted, or queued again by
 # retry without --restart after part of it was acknowledged.
 _RESUME = "({t}.state = 'interrupted' OR ({t}.state = 'queued' AND {t}.acked_bytes > 0))"
@@ -49,18 +51,23 @@ class Queries:
                             "FROM jobs j JOIN snapshots s ON s.id = j.snapshot_id")
         # The next job for a worker: resumes first (a half-drawn sheet is on that plotter), then
         # priority, then arrival; never a plotter that is busy or holds a resume (another job's).
+        # A worker with a port (its plotter :plotter) takes the jobs at that port, for its plotter by
+        # name, or for any plotter of its profile, and runs them there; one without, the jobs that
+        # name a port.  Nobody takes a job for another plotter.
         self.runnable_where = f"""
             WHERE j.state IN ('queued', 'interrupted')
-              AND (:device IS NULL OR s.device = :device) AND (:port IS NULL OR j.port = :port)
+              AND (:device IS NULL OR s.device = :device) AND (j.plotter IS NULL OR j.plotter = :plotter)
+              AND CASE WHEN :port IS NULL THEN j.port <> '' ELSE j.port = :port OR j.plotter = :plotter
+                                                                 OR (j.any_plotter <> 0 AND s.device = :device) END
               AND {not_excluded}
-              AND NOT EXISTS (SELECT 1 FROM jobs o WHERE o.port = j.port AND o.id <> j.id
+              AND NOT EXISTS (SELECT 1 FROM jobs o WHERE o.port = COALESCE(:port, j.port) AND o.id <> j.id
                               AND (o.state IN ('running', 'waiting')
                                    OR ({_RESUME.format(t='o')} AND NOT {_RESUME.format(t='j')})))"""
         self.claim_order = f"ORDER BY {_RESUME.format(t='j')} DESC, j.priority DESC, j.id"
         self.runnable = f"{self.select_jobs} {self.runnable_where} {self.claim_order}"
 
 
-class SqlQueueStore:
+class SqlQueueStore(PlotterRegistry):
     """Every :class:`~foldfab.queue.store.QueueStore` operation, on the transactions a subclass gives:
     ``_read()`` (one consistent read) and ``_write(create)`` (one transaction that expires dead
     workers' leases first), each yielding a connection with ``execute`` and ``executemany``."""
@@ -116,7 +123,15 @@ class SqlQueueStore:
 
     def _params(self, db: Any, **values) -> dict:
         return {"now": time.time(), "host": self._host, "device": None, "port": None, "exclude": self._exclude(()),
-                "dead": self._dead_pids(db)} | values
+                "dead": self._dead_pids(db), "plotter": None} | values
+
+    def _held_jobs(self, db: Any) -> dict[str, JobRecord]:
+        rows = db.execute(f"{self.queries.select_jobs} WHERE j.state IN ('running', 'waiting')",
+                          self._params(db)).fetchall()
+        return {job.worker: job for job in map(_record, rows) if job.state in ACTIVE and job.worker}
+
+    def _process_gone(self, host: str, pid: int) -> bool:
+        return host == self._host and not pid_alive(pid)
 
     def _no_job(self, job_id: int) -> FoldfabError:
         return FoldfabError(f"no job {job_id} in queue {self.location}; see foldfab queue list")
@@ -186,7 +201,7 @@ class SqlQueueStore:
 
     def add(self, jobs: Sequence[NewJob]) -> list[int]:
         for new in jobs:
-            if not new.port.strip():
+            if not (new.port.strip() or new.plotter is not None or new.any_plotter):
                 raise FoldfabError(f"{new.snapshot.name}: empty port: give a serial port or pyserial URL")
             if not (PRIORITIES[0] <= new.priority <= PRIORITIES[1] and 1 <= new.copies <= MAX_COPIES):
                 raise ValueError(f"priority must be from {PRIORITIES[0]} to {PRIORITIES[1]} and copies from 1 "
@@ -197,6 +212,9 @@ class SqlQueueStore:
             now = time.time()
             for new, length in zip(jobs, lengths):
                 snap = new.snapshot
+                port = new.port if new.plotter is None else self._plotter(db, new.plotter, snap.device, snap.name)[0]
+                where = (f"on plotter {new.plotter} ({port})" if new.plotter is not None else
+                         f"on any plotter of {snap.device}" if new.any_plotter else f"on {snap.device} at {port}")
                 snapshot_id = db.execute(
                     "INSERT INTO snapshots (name, job_path, device, program_bytes, program_sha256, program_meta, "
                     "job_text, device_text, program) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING id",
@@ -204,12 +222,13 @@ class SqlQueueStore:
                      program_meta(snap.program), snap.job_text, snap.device_text, snap.program.text)).fetchone()[0]
                 for copy in range(1, new.copies + 1):
                     job_id = db.execute(
-                        "INSERT INTO jobs (snapshot_id, port, priority, copy, copies, created, updated, drawn_total_mm) "
-                        "VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING id",
-                        (snapshot_id, new.port, new.priority, copy, new.copies, now, now, length)).fetchone()[0]
+                        "INSERT INTO jobs (snapshot_id, port, priority, copy, copies, created, updated, "
+                        "drawn_total_mm, plotter, any_plotter) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING id",
+                        (snapshot_id, port, new.priority, copy, new.copies, now, now, length, new.plotter,
+                         int(new.any_plotter and new.plotter is None))).fetchone()[0]
                     label = f" (copy {copy} of {new.copies})" if new.copies > 1 else ""
                     self._event(db, job_id, "queued",
-                                f"queued{label}: {snap.job_path} on {snap.device} at {new.port}, priority "
+                                f"queued{label}: {snap.job_path} {where}, priority "
                                 f"{new.priority}, program {len(snap.program.text)} bytes, sha256 {snap.sha256[:16]}")
                     ids.append(job_id)
             self._notify(db)
@@ -264,7 +283,8 @@ class SqlQueueStore:
                                    + ("; remove it with foldfab queue remove" if job.state in FINISHED else ""))
             return self._get(db, job_id)
 
-    def retry(self, job_id: int, restart: bool = False, port: str | None = None) -> JobRecord:
+    def retry(self, job_id: int, restart: bool = False, port: str | None = None,
+              plotter: str | None = None) -> JobRecord:
         with self._write() as db:
             job = self._get(db, job_id, lock=True)
             if job.state not in ("failed", "cancelled", "interrupted"):
@@ -272,13 +292,15 @@ class SqlQueueStore:
                                    "can be retried")
             if port is not None and not port.strip():
                 raise FoldfabError(f"job {job_id}: empty port: give a serial port or pyserial URL with --port")
+            if plotter is not None:
+                port = self._plotter(db, plotter, job.device, f"job {job_id}")[0]
             self._lock_port(db, port or job.port)
             where = "from the start, on a new sheet" if restart or not job.acked_bytes else \
                 f"from byte {job.acked_bytes} of {job.program_bytes} (the last acknowledged stroke)"
             values = {"acked_bytes": 0, "pauses_done": 0, "progress": "", "drawn_mm": 0} if restart else {}
-            if port is not None:
-                values["port"] = port
-                where += f", at {port} (was {job.port})"
+            if port is not None:  # the operator moved the sheet: to that plotter (or port) only
+                values.update(port=port, plotter=plotter, any_plotter=0)
+                where += f", {f'on plotter {plotter} ' if plotter else ''}at {port} (was {job.target} at {job.port})"
             self._set(db, job_id, state="queued", reason=None, **values)
             self._event(db, job_id, "retried", f"queued again (was {job.state}): runs {where}")
             self._notify(db)
@@ -322,29 +344,31 @@ class SqlQueueStore:
     # -- worker side
 
     def runnable(self, device: str | None = None, port: str | None = None,
-                 exclude: Sequence[int] = ()) -> list[JobRecord]:
+                 exclude: Sequence[int] = (), plotter: str | None = None) -> list[JobRecord]:
         if not self._exists():
             return []
         with self._read() as db:
-            rows = db.execute(self.queries.runnable, self._params(db, device=device, port=port,
+            rows = db.execute(self.queries.runnable, self._params(db, device=device, port=port, plotter=plotter,
                                                                   exclude=self._exclude(exclude))).fetchall()
         return [_record(row) for row in rows]
 
     def claim(self, worker: WorkerId, lease: float, device: str | None = None, port: str | None = None,
-              exclude: Sequence[int] = ()) -> Claim | None:
+              exclude: Sequence[int] = (), plotter: str | None = None) -> Claim | None:
         if not self._exists():
             return None
         with self._write() as db:
-            params = self._params(db, device=device, port=port, exclude=self._exclude(exclude))
+            params = self._params(db, device=device, port=port, exclude=self._exclude(exclude), plotter=plotter)
             row = self._next_runnable(db, params)
             if row is None:
                 return None
             job = _record(row)
             self._set(db, job.id, state="running", worker=str(worker), worker_host=worker.host,
                       worker_pid=worker.pid, lease_expires=time.time() + lease, attempts=job.attempts + 1,
-                      cancel_requested=0, reason=None)
+                      cancel_requested=0, reason=None, port=port or job.port, plotter=plotter or job.plotter,
+                      any_plotter=0)  # from now on its sheet is on this plotter
             what = f"resumed at byte {job.acked_bytes} of {job.program_bytes}" if job.acked_bytes else "started"
-            self._event(db, job.id, "started", f"{what} by worker {worker} (attempt {job.attempts + 1})")
+            on = f" on plotter {plotter} at {port}" if plotter else f" at {port}" if port and job.any_plotter else ""
+            self._event(db, job.id, "started", f"{what} by worker {worker}{on} (attempt {job.attempts + 1})")
             job = self._get(db, job.id)
         try:
             return Claim(job, self.snapshot(job.id))
@@ -360,6 +384,7 @@ class SqlQueueStore:
                 return Control("lost", False, True)
             values = _given(acked_bytes=acked_bytes, progress=progress, pauses_done=pauses_done, drawn=drawn)
             self._set(db, job_id, lease_expires=time.time() + lease, **values)
+            self._seen(db, worker)
             return Control(*owned, False)
 
     def log(self, job_id: int, kind: str, message: str) -> None:
@@ -422,4 +447,5 @@ def _given(drawn: tuple[float, float] | None = None, **values) -> dict:
 def _record(row: tuple) -> JobRecord:
     values = list(row)
     values[17] = bool(values[17])  # cancel_requested
+    values[23] = bool(values[23])  # any_plotter
     return JobRecord(*values)

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Protocol, Sequence
 from foldfab.errors import FoldfabError
 
 if TYPE_CHECKING:
-    from foldfab.queue.records import Claim, Control, Event, JobRecord, NewJob, WorkerId
+    from foldfab.queue.records import Claim, Control, Event, JobRecord, NewJob, PlotterRecord, WorkerId
     from foldfab.queue.snapshot import Snapshot
 
 DEFAULT_WAIT = 10.0
@@ -47,9 +47,11 @@ class QueueStore(Protocol):
     def cancel(self, job_id: int) -> JobRecord:
         """Cancel a job that has not run, or ask its worker to stop the plotter."""
 
-    def retry(self, job_id: int, restart: bool = False, port: str | None = None) -> JobRecord:
+    def retry(self, job_id: int, restart: bool = False, port: str | None = None,
+              plotter: str | None = None) -> JobRecord:
         """Queue a failed, cancelled or interrupted job again (``restart``: from byte 0, a new sheet;
-        ``port``: on another port, e.g. after the plotter came back as another device)."""
+        ``port``: on another port, e.g. after the plotter came back as another device; ``plotter``:
+        on that registered plotter of the job's profile, the operator moved the sheet there)."""
 
     def continue_job(self, job_id: int, source: str) -> JobRecord:
         """The operator acted at the pause (``source`` says where): ``waiting`` -> ``running``.
@@ -62,13 +64,15 @@ class QueueStore(Protocol):
         """Delete every job in ``states``; how many."""
 
     def claim(self, worker: WorkerId, lease: float, device: str | None = None, port: str | None = None,
-              exclude: Sequence[int] = ()) -> Claim | None:
-        """Atomically take the next runnable job (for ``device``/``port`` if given, not in ``exclude``).
+              exclude: Sequence[int] = (), plotter: str | None = None) -> Claim | None:
+        """Atomically take the next runnable job (for ``device``/``port`` if given, not in ``exclude``;
+        a worker with a ``port`` also takes the jobs for its ``plotter`` and for any plotter of its
+        ``device``, and never one for another plotter).
         A job whose snapshot is damaged is claimed too: its :attr:`Claim.snapshot` raises, and the
         worker fails the job and reports it."""
 
     def runnable(self, device: str | None = None, port: str | None = None,
-                 exclude: Sequence[int] = ()) -> list[JobRecord]:
+                 exclude: Sequence[int] = (), plotter: str | None = None) -> list[JobRecord]:
         """Jobs a claim would take, in claim order (without claiming them)."""
 
     def heartbeat(self, job_id: int, worker: WorkerId, lease: float, acked_bytes: int | None = None,
@@ -86,6 +90,20 @@ class QueueStore(Protocol):
                acked_bytes: int | None = None, pauses_done: int | None = None,
                progress: str | None = None, drawn: tuple[float, float] | None = None) -> bool:
         """End the worker's hold: ``done``, ``failed``, ``cancelled`` or ``interrupted``; False if it was lost."""
+
+    def register_plotter(self, name: str, port: str, device: str | None, worker: WorkerId, lease: float) -> None:
+        """``worker`` runs plotter ``name`` at ``port`` (of profile ``device``) from now on;
+        FoldfabError if another worker that is online holds the name."""
+
+    def plotter_alive(self, name: str, worker: WorkerId) -> bool:
+        """An idle worker's heartbeat for its plotter (a job's heartbeat renews it too); False if the
+        plotter is no longer this worker's."""
+
+    def unregister_plotter(self, name: str, worker: WorkerId) -> None:
+        """The worker stopped cleanly: its plotter is offline."""
+
+    def plotters(self) -> list[PlotterRecord]:
+        """Every registered plotter with what it does now (idle, drawing, paused, offline)."""
 
     def wait_for_work(self, timeout: float, stop: threading.Event) -> None:
         """Wait up to ``timeout`` s for a job to become runnable (sooner when the store can tell,

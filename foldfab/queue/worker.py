@@ -35,6 +35,7 @@ slow to renew its lease and would lose the job again.
 from __future__ import annotations
 
 import bisect
+import socket
 import threading
 import time
 from dataclasses import dataclass, field
@@ -42,7 +43,8 @@ from functools import partial
 from typing import TYPE_CHECKING, Callable, Protocol
 
 from foldfab.errors import FoldfabError
-from foldfab.queue.records import DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, WorkerId
+from foldfab.queue.records import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, WorkerId,
+                                   default_plotter_name, plotter_name)
 from foldfab.queue.snapshot import load_snapshot_device
 from foldfab.queue.store import QueueBusy, QueueStore
 
@@ -147,6 +149,18 @@ class WorkerOptions:
     once when a job may have become runnable); also how often a pause checks the queue."""
     retry_after: float = 60.0
     """follow: seconds before this worker resumes a job it saw interrupted."""
+    name: str | None = None
+    """The name of the plotter at ``port``, registered in the queue (default ``host:port``)."""
+
+    @property
+    def plotter(self) -> str | None:
+        """The plotter's name: a worker with a port registers its plotter; one without runs every
+        job at the job's own port, and registers none."""
+        if self.port is None:
+            if self.name is not None:
+                raise FoldfabError(f"plotter {self.name}: a named plotter needs its port: give --port PORT")
+            return None
+        return plotter_name(self.name or default_plotter_name(socket.gethostname(), self.port))
 
 
 @dataclass
@@ -301,6 +315,8 @@ class Worker:
         self.store, self.ui, self.options, self.runner = store, ui, options, runner
         self.locate = locate
         self.id = WorkerId.current()
+        self.plotter = options.plotter
+        self._alive_at = time.monotonic()  # when the plotter's heartbeat was last renewed
         self.interrupted: dict[int, float] = {}  # jobs this worker saw interrupted or lost, and when
         self.stopping = threading.Event()
         self.interrupting = False
@@ -321,15 +337,30 @@ class Worker:
             self._cancel.set()
 
     def run(self) -> WorkerSummary:
-        """Claim and plot jobs until the mode says stop; Ctrl-C interrupts the job and stops."""
+        """Register the plotter, claim and plot jobs until the mode says stop, sign the plotter off;
+        Ctrl-C interrupts the job and stops."""
+        if self.plotter is None:
+            return self._run()
+        self.store.register_plotter(self.plotter, self.options.port, self.options.device, self.id, self.options.lease)
+        try:
+            return self._run()
+        finally:
+            try:
+                self.store.unregister_plotter(self.plotter, self.id)
+            except FoldfabError:  # the queue is out of reach: the plotter shows offline once its lease is over
+                pass
+
+    def _run(self) -> WorkerSummary:
         summary = WorkerSummary()
         while not self.stopping.is_set():
+            self._keep_plotter()
             claim = self.store.claim(self.id, self.options.lease, self.options.device, self.options.port,
-                                     exclude=self._skipped())
+                                     exclude=self._skipped(), plotter=self.plotter)
             if claim is None:
                 if self.options.mode != "follow":
                     return self._ended(summary)
-                self.store.wait_for_work(self.options.poll, self.stopping)
+                poll = self.options.poll if self.plotter is None else min(self.options.poll, self.options.lease / 2)
+                self.store.wait_for_work(poll, self.stopping)
                 continue
             state = self.run_job(claim)
             summary.add(claim.job.id, state)
@@ -338,6 +369,20 @@ class Worker:
             if self.options.mode == "once":
                 return self._ended(summary)
         return self._ended(summary)
+
+    def _keep_plotter(self) -> None:
+        """The heartbeat of the plotter while no job runs (a job's heartbeats renew it while it does).
+        A plotter taken over meanwhile (its lease had run out) is registered again, which fails if
+        the other worker is online: the error stops this worker, never two on one plotter."""
+        if self.plotter is None or time.monotonic() - self._alive_at < self.options.heartbeat:
+            return
+        try:
+            if not self.store.plotter_alive(self.plotter, self.id):
+                self.store.register_plotter(self.plotter, self.options.port, self.options.device, self.id,
+                                            self.options.lease)
+        except QueueBusy:
+            return  # the claim that follows meets the same
+        self._alive_at = time.monotonic()
 
     def _ended(self, summary: WorkerSummary) -> WorkerSummary:
         if self.interrupting:
@@ -450,7 +495,7 @@ def rehearse(store: QueueStore, ui: WorkerUI, options: WorkerOptions = WorkerOpt
     snapshot) or that the simulated plotter stops is reported and the next one rehearsed.  The
     queue is not changed."""
     summary = WorkerSummary()
-    for job in store.runnable(options.device, options.port):
+    for job in store.runnable(options.device, options.port, plotter=options.plotter):
         summary.add(job.id, _rehearse_job(store, ui, job, runner))
         if options.mode == "once":
             break

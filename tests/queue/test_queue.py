@@ -192,7 +192,7 @@ def test_queue_move_takes_an_interrupted_job_to_another_plotter_only_when_told(s
     assert store.claim(worker, 30, port="sim://b") is None  # a half-drawn sheet never moves by itself
     with pytest.raises(SystemExit) as stop:
         main(["queue", "move", "1", "--queue", where(store)])
-    assert stop.value.code == 2 and "the following arguments are required: --port" in capsys.readouterr().err
+    assert stop.value.code == 2 and "one of the arguments --port --plotter is required" in capsys.readouterr().err
     code, out, _ = run_cli(capsys, "queue", "move", "1", "--port", "sim://b", "--queue", where(store))
     assert code == 0 and "resumes at byte 7" in out
     assert (store.job(1).port, store.job(1).acked_bytes) == ("sim://b", 7)
@@ -627,17 +627,23 @@ def test_bad_job_files_are_rejected_and_nothing_is_added(tmp_path, capsys, conte
     assert SqliteQueueStore(queue).jobs() == []
 
 
-def test_add_needs_a_port_and_a_known_device(tmp_path, capsys):
+def test_add_needs_a_known_device_and_a_job_without_port_waits_for_a_plotter_of_its_profile(tmp_path, capsys):
+    queue = ["--queue", str(tmp_path / "q.sqlite3")]
+    code, _, err = run_cli(capsys, "queue", "add", str(HEXAGON), "--device", "nonesuch", *queue)
+    assert code == 2 and "unknown device 'nonesuch'" in err
+    assert not (tmp_path / "q.sqlite3").exists()
     profile = tmp_path / "noport.toml"
     profile.write_text("\n".join(line for line in (ROOT / "devices" / "grbl.toml").read_text().splitlines()
                                  if not line.startswith("port")))
-    code, _, err = run_cli(capsys, "queue", "add", str(HEXAGON), "--device", str(profile),
-                           "--queue", str(tmp_path / "q.sqlite3"))
-    assert code == 2 and "has no port: give --port PORT" in err
-    code, _, err = run_cli(capsys, "queue", "add", str(HEXAGON), "--device", "nonesuch",
-                           "--queue", str(tmp_path / "q.sqlite3"))
-    assert code == 2 and "unknown device 'nonesuch'" in err
-    assert not (tmp_path / "q.sqlite3").exists()
+    code, out, err = run_cli(capsys, "queue", "add", str(HEXAGON), "--device", str(profile), *queue)
+    assert code == 0 and "for any plotter of it (foldfab queue run --device grbl --port PORT)" in out, err
+    job = SqliteQueueStore(tmp_path / "q.sqlite3").job(1)
+    assert (job.port, job.any_plotter, job.target) == ("", True, "any")
+    # a worker without a port of its own has nowhere to run it
+    assert run_cli(capsys, "queue", "run", "--dry-run", *queue)[1].startswith("nothing to run")
+    out = run_cli(capsys, "queue", "run", "--dry-run", "--device", "grbl", "--port", "sim://grbl?time=instant",
+                  *queue)[1]
+    assert "job 1: " in out and "1 done (1)" in out
 
 
 def test_snapshot_does_not_change_when_the_job_and_its_svg_change(tmp_path, capsys):
