@@ -143,3 +143,40 @@ def test_three_a4_sheets_long_export_preview_plot_and_print_as_three_pieces(tmp_
                      for letter, other in re.findall(r"edge (\w+) takes the tab of piece (\d)", text))
     assert tabs == edges and sorted(tabs) == ["A", "B", "C"]   # every tab meets the edge with its letter
     assert sorted(a for a, _ in tabs.values()) == [1, 2, 3]
+
+
+def test_each_piece_svg_carries_its_marks_on_a_layer_origami_simulator_skips(tmp_path, capsys):
+    import xml.etree.ElementTree as ET
+
+    import numpy as np
+
+    from foldfab.design import load_design
+    from foldfab.fabrication.pieces import design_pieces
+    from foldfab.fabrication.spec import job_spec
+    from foldfab.formats.svg import user_unit
+
+    code, out, err = run(capsys, "design", LANTERN, "--svg", tmp_path / "l.svg")
+    assert code == 0, err
+    design = load_design(LANTERN)
+    spec = job_spec(design.job)
+    pieces = design_pieces(design, spec, spec.sheet)
+    ns = "{http://www.w3.org/2000/svg}"
+    whole = ET.parse(tmp_path / "l.svg").getroot()
+    assert {child.tag for child in whole} == {f"{ns}line"}   # the whole design has no marks
+    for piece in pieces:
+        root = ET.parse(tmp_path / f"l-{piece.number}.svg").getroot()
+        # Origami Simulator reads the root's own line elements only: the creases, as before
+        assert {child.tag for child in root} == {f"{ns}line", f"{ns}g"}
+        lines = [child for child in root if child.tag == f"{ns}line"]
+        assert len(lines) == len(piece.crease_pattern.edges)
+        [layer] = [child for child in root if child.tag == f"{ns}g"]
+        assert layer.get("id") == "marks" and layer.get("{http://www.inkscape.org/namespaces/inkscape}label") == "marks"
+        assert layer.get("stroke") == "#000000"
+        strokes = [np.array([p.split(",") for p in poly.get("points").split()], float)
+                   for poly in layer.iter(f"{ns}polyline")]
+        assert len(strokes) == len(piece.marks) > 0
+        cp = piece.crease_pattern
+        unit, lo, hi = user_unit(cp.vertices), cp.vertices.min(axis=0), cp.vertices.max(axis=0)
+        for drawn, mark in zip(strokes, piece.marks):
+            np.testing.assert_allclose(drawn, np.column_stack([mark[:, 0] - lo[0], hi[1] - mark[:, 1]]) / unit,
+                                       atol=1e-5)
