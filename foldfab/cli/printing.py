@@ -10,7 +10,7 @@ import argparse
 import json
 from pathlib import Path
 
-from foldfab.cli.common import _add_max_faces, _check_output, _design
+from foldfab.cli.common import _add_max_faces, _add_split_args, _check_output, _design
 
 
 def cmd_print(args: argparse.Namespace) -> int:
@@ -18,7 +18,7 @@ def cmd_print(args: argparse.Namespace) -> int:
     from foldfab.errors import FoldfabError
     from foldfab.fabrication.spec import job_spec
     from foldfab.job import load_job
-    from foldfab.printing.output import SUFFIXES, write_template
+    from foldfab.printing.output import SUFFIXES, template_pieces, write_template
     from foldfab.printing.paper import PrintOptions, check_options, parse_paper
 
     output = Path(args.output)
@@ -31,21 +31,23 @@ def cmd_print(args: argparse.Namespace) -> int:
     options = PrintOptions(paper, name, turnable, args.margin, args.overlap, scale, args.flat, args.mono)
     check_options(options)
     design = _design(args)
+    pieces = template_pieces(design, options, args.split)
     try:
-        template, written = write_template(design, output, options)
+        template, written = write_template(design, output, options, pieces)
     except OSError as exc:
         raise FoldfabError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
     tilings = template.tilings
-    info = {"name": design.job.name, "pages": len(template.pages), "paper": name,
+    info = {"name": design.job.name, "pages": len(template.pages), "pieces": max(len(pieces), 1), "paper": name,
             "paper_mm": list(tilings[0].paper), "scale": scale,
             "tiles": [[t.rows, t.cols] for t in tilings], "written": [str(p) for p in written]}
     if args.json:
         print(json.dumps(info, indent=2))
     else:
-        rows, cols = info["tiles"][0]
         w, h = info["paper_mm"]
+        tiles = ", ".join(f"{rows} x {cols}" for rows, cols in info["tiles"])
+        pieces_text = f"{info['pieces']} pieces of " if pieces else ""
         print(f"template     {info['name']}: {info['pages']} pages of {name} ({w:g} x {h:g} mm), scale {scale:g}, "
-              f"{rows} x {cols} tiles after the first page")
+              f"{pieces_text}{tiles} tiles after the first page")
         for path in written:
             print(f"wrote        {path}")
     return 0
@@ -91,6 +93,7 @@ def add_commands(sub) -> None:
                           "a job's \"fit\" prints at 1)")
     cmd.add_argument("--flat", action="store_true", help="draw flat creases (no fold) in faint grey")
     cmd.add_argument("--mono", action="store_true", help="black lines only (styles still differ)")
+    _add_split_args(cmd, one_program=False)
     cmd.add_argument("--allow-penetration", action="store_true", help="print a design whose faces intersect")
     _add_max_faces(cmd)
     cmd.add_argument("--json", action="store_true", help="print the report as JSON")

@@ -32,7 +32,7 @@ def design_file_data(design: Design, kind: str, suffix: str = "") -> bytes:
     if kind == "svg":
         from foldfab.formats import svg
 
-        return svg.dumps(cp).encode()
+        return svg.dumps(cp, marks=design.marks).encode()
     if kind == "cp":
         from foldfab.formats import oripa
 

@@ -9,11 +9,17 @@ Origami Simulator's import merges vertices closer than 3 of the SVG's user units
 (its default tolerance), so the coordinates are written in a user unit fine enough
 that the import is exact (:func:`user_unit`); ``width`` and ``height`` in mm keep the
 sheet's physical size.
+
+A split piece's match marks (its number, its tabs' and edges' letters) go on a layer of their
+own, an Inkscape layer group ``marks`` in the cut's colour, as on the plotter's marks layer.
+Origami Simulator imports only the root element's own ``line``, ``path``, ``polyline``, ...
+children (``loadSVG`` in its ``js/pattern.js``), so it never reads the marks as creases.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -26,6 +32,9 @@ CLEARANCE = 10.0
 """User units the closest two vertices are at least apart: the import's tolerance with a margin."""
 COARSEST_UNIT = 0.1
 """mm: the user unit of a design whose vertices are at least 1 mm apart."""
+INKSCAPE = "http://www.inkscape.org/namespaces/inkscape"
+MARKS_COLOR = COLORS["B"]
+"""The match marks' colour: the cut's, as the plotter draws them (never cut)."""
 
 
 def user_unit(vertices: np.ndarray) -> float:
@@ -57,8 +66,9 @@ def _shortest_distance(vertices: np.ndarray, reach: float) -> float | None:
     return shortest if shortest < reach else None
 
 
-def dumps(cp: CreasePattern, stroke_width: float = 0.2) -> str:
-    """SVG text of ``cp``; ``stroke_width`` in mm."""
+def dumps(cp: CreasePattern, stroke_width: float = 0.2, marks: Sequence[np.ndarray] = ()) -> str:
+    """SVG text of ``cp``, and of a split piece's ``marks`` (strokes (N, 2) in crease-pattern mm)
+    on their own ``marks`` layer; ``stroke_width`` in mm."""
     unit = user_unit(cp.vertices)
     lo = cp.vertices.min(axis=0)
     hi = cp.vertices.max(axis=0)
@@ -75,6 +85,15 @@ def dumps(cp: CreasePattern, stroke_width: float = 0.2) -> str:
         f'stroke-width="{stroke_width / unit:g}"/>'
         for i in order.tolist()
     ]
+    layer = ""
+    if len(marks):
+        polylines = "\n".join(
+            '<polyline points="' + " ".join(f"{(px - lo[0]) / unit:.6f},{(hi[1] - py) / unit:.6f}"
+                                            for px, py in stroke.tolist()) + '"/>' for stroke in marks)
+        layer = (f'\n<g id="marks" inkscape:groupmode="layer" inkscape:label="marks" fill="none" '
+                 f'stroke="{MARKS_COLOR}" stroke-width="{stroke_width / unit:g}">\n{polylines}\n</g>')
+    namespace = f' xmlns:inkscape="{INKSCAPE}"' if layer else ""
     return (f'<?xml version="1.0" encoding="UTF-8"?>\n'
-            f'<svg xmlns="http://www.w3.org/2000/svg" version="1.1" width="{width:.6f}mm" height="{height:.6f}mm" '
-            f'viewBox="0 0 {width / unit:.6f} {height / unit:.6f}">\n' + "\n".join(lines) + "\n</svg>\n")
+            f'<svg xmlns="http://www.w3.org/2000/svg"{namespace} version="1.1" width="{width:.6f}mm" '
+            f'height="{height:.6f}mm" viewBox="0 0 {width / unit:.6f} {height / unit:.6f}">\n'
+            + "\n".join(lines) + layer + "\n</svg>\n")

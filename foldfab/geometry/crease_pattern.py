@@ -21,6 +21,9 @@ from foldfab.geometry.reflection import Reflection
 
 BORDER, MOUNTAIN, VALLEY, FLAT = "B", "M", "V", "F"
 FLAT_FOLD_TOL = 1e-6  # degrees: a fold closer than this to 180 has no defined direction
+CHAMFER = 0.45
+"""The most of the outer edge of a glue tab's end face that the tab's chamfer takes away (the
+outer edge keeps the rest, so even a one-face tab stays a quadrilateral)."""
 
 
 @dataclass(frozen=True)
@@ -99,22 +102,46 @@ def tab_edge(cut: np.ndarray, edge: np.ndarray, near_3d: np.ndarray, edge_3d: np
     run in the folded model), ``axis`` the sheet axis the width is measured along (0: x, for a
     cut along a mirror crease; 1: y, along a line element).  The tab must not reach past the
     panel's narrowest width: an edge shorter than ``width`` across is an error naming it
-    (``what(i)``).  Returns the tab's far vertices on the sheet (N, 2) and folded (N, 3)."""
+    (``what(i)``).  The tab's two ends are chamfered (:func:`_chamfer`).  Returns the tab's far
+    vertices on the sheet (N, 2) and folded (N, 3)."""
     across = np.abs(edge[:, axis])
     if np.any(across < width - tolerance):
         i = int(np.argmin(across))
         raise DesignError(f"[crease].glue_tab: {width:g} mm is longer than {what(i)} ({across[i]:.4g} mm), "
                           f"which the tab must lie on; reduce glue_tab to at most {across.min():.4g}")
     t = (width / np.maximum(across, tolerance))[:, None]
-    return cut + t * edge, near_3d + t * edge_3d
+    return _chamfer(cut, cut + t * edge, near_3d + t * edge_3d, width, 1 - axis)
 
 
-def tabbed_grid(grid: Reflection, glue_tab: float) -> tuple[np.ndarray, np.ndarray, int]:
-    """The grid's crossings ``x`` (J, C) and 3D ``points`` (J, C, 3), with a closed design's seam
-    tab (``glue_tab`` > 0) as one more column lying on the first panel; and that column count (0 or 1)."""
+def _chamfer(cut: np.ndarray, far: np.ndarray, far_3d: np.ndarray, width: float,
+             along: int) -> tuple[np.ndarray, np.ndarray]:
+    """A tab's far vertices with both ends chamfered: each end's outer corner moves along its
+    end face's outer edge until it lies ``width`` further in along the cut (sheet axis
+    ``along``) than the cut's end, so that a square end leans in at 45 degrees; at most
+    :data:`CHAMFER` of that edge.  The folded corner moves by the same fraction of the same
+    edge, so the chamfered tab is a part of the square one: it still lies under the
+    neighbouring panel, never past its narrowest width, and its faces stay the same faces."""
+    out, out_3d = far.copy(), far_3d.copy()
+    inward = np.sign(cut[-1, along] - cut[0, along])
+    for end, inner, sign in ((0, 1, inward), (-1, -2, -inward)):
+        run = far[inner, along] - far[end, along]
+        if sign * run <= 0:   # an outer edge that does not run inward: no chamfer
+            continue
+        f = min(max((cut[end, along] + sign * width - far[end, along]) / run, 0.0), CHAMFER)
+        out[end] = far[end] + f * (far[inner] - far[end])
+        out_3d[end] = far_3d[end] + f * (far_3d[inner] - far_3d[end])
+    return out, out_3d
+
+
+def tabbed_grid(grid: Reflection, glue_tab: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The grid's crossings ``x`` (J, C), their sheet heights ``y`` (J, C: the profile's arc
+    length, but where a tab's chamfer moves a corner) and 3D ``points`` (J, C, 3), with a closed
+    design's seam tab (``glue_tab`` > 0) as one more column lying on the first panel; and that
+    column count (0 or 1)."""
     x, points = grid.x, grid.points
+    heights = np.broadcast_to(grid.arc[:, None], x.shape)
     if glue_tab <= 0:
-        return x, points, 0
+        return x, heights, points, 0
     if not grid.closed:
         raise DesignError("[crease].glue_tab: a glue tab joins the two ends of a closed trajectory; "
                           "this trajectory is open: set glue_tab = 0")
@@ -122,28 +149,30 @@ def tabbed_grid(grid: Reflection, glue_tab: float) -> tuple[np.ndarray, np.ndarr
     edge = np.column_stack([x[:, 1] - x[:, 0], np.zeros(len(x))])
     far, far_3d = tab_edge(cut, edge, points[:, 0], points[:, 1] - points[:, 0], glue_tab, 0, grid.tolerance,
                            lambda j: f"the first segment of line element {j}")
-    return np.column_stack([x, far[:, 0]]), np.concatenate([points, far_3d[:, None]], axis=1), 1
+    return (np.column_stack([x, far[:, 0]]), np.column_stack([heights, far[:, 1]]),
+            np.concatenate([points, far_3d[:, None]], axis=1), 1)
 
 
 def build_crease_pattern(grid: Reflection, flat_angle: float = 1.0, glue_tab: float = 0.0) -> CreasePattern:
     """Crease pattern of ``grid``; creases folding less than ``flat_angle`` degrees are flat."""
-    x, points, tab_columns = tabbed_grid(grid, glue_tab)
+    x, y, points, tab_columns = tabbed_grid(grid, glue_tab)
     J, C = x.shape
     grid_ids = np.stack(np.meshgrid(np.arange(J - 1), np.arange(C - 1), indexing="ij"), axis=-1)
     tab = grid_ids[..., 1] >= C - 1 - tab_columns
-    return grid_pattern(x, grid.arc, points, flat_angle, grid_ids, tab)
+    return grid_pattern(x, y, points, flat_angle, grid_ids, tab)
 
 
 def grid_pattern(x: np.ndarray, y: np.ndarray, points: np.ndarray, flat_angle: float, grid_ids: np.ndarray,
                  tab: np.ndarray, keep: np.ndarray | None = None, normals: np.ndarray | None = None) -> CreasePattern:
-    """The crease pattern of a grid of crossings: ``x`` (J, C) on the sheet at heights ``y`` (J,),
-    ``points`` (J, C, 3) folded.  Its (J-1, C-1) cells are faces: ``grid_ids`` names each by the
+    """The crease pattern of a grid of crossings: ``x`` (J, C) on the sheet at heights ``y`` (J,
+    or (J, C) where a tab's chamfer moves a corner off its line element), ``points`` (J, C, 3) folded.  Its (J-1, C-1) cells are faces: ``grid_ids`` names each by the
     design's (profile segment, trajectory segment), ``tab`` marks glue tabs, ``keep`` the cells
     that are faces at all (default every one), ``normals`` their folded normals (default from
     ``points``; a piece passes the whole design's, so that its folds are the design's exactly)."""
     J, C = x.shape
+    heights = np.broadcast_to(y[:, None], (J, C)) if y.ndim == 1 else y
     seglen = np.diff(x, axis=1)
-    zero = seglen == 0.0
+    zero = (seglen == 0.0) & (np.diff(heights, axis=1) == 0.0)
     both = zero[:-1] & zero[1:]
     if np.any(both):
         j, k = map(int, grid_ids[tuple(np.argwhere(both)[0])])
@@ -153,7 +182,7 @@ def grid_pattern(x: np.ndarray, y: np.ndarray, points: np.ndarray, flat_angle: f
     new = np.ones((J, C), bool)
     new[:, 1:] = ~zero
     ids = np.cumsum(new.ravel()).reshape(J, C) - 1
-    vertices = np.column_stack([x[new], np.broadcast_to(y[:, None], (J, C))[new]])
+    vertices = np.column_stack([x[new], heights[new]])
     vertices_3d = points[new]
 
     faces = np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], axis=-1).reshape(-1, 4)

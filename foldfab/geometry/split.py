@@ -14,12 +14,12 @@ Pure geometry: no I/O.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from foldfab.errors import DesignError
-from foldfab.geometry.crease_pattern import CreasePattern, grid_pattern, tab_edge, tabbed_grid, face_normals
+from foldfab.geometry.crease_pattern import CreasePattern, face_normals, grid_pattern, tab_edge, tabbed_grid
 from foldfab.geometry.reflection import Reflection
 from foldfab.geometry.stroke_font import text_strokes
 
@@ -39,6 +39,7 @@ class Join:
     line: np.ndarray          # (N, 2) the cut line, piece coordinates
     across: int               # sheet axis the tab's strip runs from the line: 0 (+x) or 1 (+y)
     width: float              # mm, the tab's width
+    outline: np.ndarray | None = None   # (M, 2) the tab's polygon (chamfered ends), piece coordinates; None: an edge
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ def split_pattern(grid: Reflection, flat_angle: float, glue_tab: float, columns:
     pieces, numbered row by row from the bottom left; tabs ``glue_tab`` mm wide (or
     :func:`_tab_width`).  The seam tab of a closed design stays on the last piece of each row."""
     check_cuts(grid, list(columns), list(rows), "[fabrication].split", "[fabrication].split_height")
-    x, points, seam = tabbed_grid(grid, glue_tab)
+    x, heights, points, seam = tabbed_grid(grid, glue_tab)
     y, tol = grid.arc, grid.tolerance
     J, C = x.shape
     K = grid.x.shape[1] - 1
@@ -118,34 +119,41 @@ def split_pattern(grid: Reflection, flat_angle: float, glue_tab: float, columns:
             ja, jb = row_bounds[r], row_bounds[r + 1]
             ka, kb = col_bounds[c], col_bounds[c + 1]
             last = C - 1 if c == ncol - 1 else kb
-            xs, ps, ys = x[ja:jb + 1, ka:last + 1], points[ja:jb + 1, ka:last + 1], y[ja:jb + 1]
+            xs, ps, ys = x[ja:jb + 1, ka:last + 1], points[ja:jb + 1, ka:last + 1], heights[ja:jb + 1, ka:last + 1]
             jj, kk = np.meshgrid(np.arange(ja, jb), np.arange(ka, last), indexing="ij")
             ids, tab_col = np.stack([jj, kk], axis=-1), kk >= K
-            widths = {}
+            widths, outlines = {}, {}
+            if seam and c == ncol - 1:   # the seam tab as it is, chamfered at the design's top and bottom
+                outlines["v"] = np.vstack([np.column_stack([x[ja:jb + 1, K], y[ja:jb + 1]]),
+                                           np.column_stack([xs[:, -1], ys[:, -1]])[::-1]])
             if c < ncol - 1:  # tab past the mirror cut at plane kb, on the next piece's first panel
                 edge = np.column_stack([x[ja:jb + 1, kb + 1] - x[ja:jb + 1, kb], np.zeros(jb - ja + 1)])
                 widths["v"] = w = _tab_width(glue_tab, np.abs(edge[:, 0]))
-                far, far_3d = tab_edge(np.column_stack([x[ja:jb + 1, kb], ys]), edge, points[ja:jb + 1, kb],
+                cut = np.column_stack([x[ja:jb + 1, kb], y[ja:jb + 1]])
+                far, far_3d = tab_edge(cut, edge, points[ja:jb + 1, kb],
                                        points[ja:jb + 1, kb + 1] - points[ja:jb + 1, kb], w, 0, tol,
                                        lambda i: f"segment {kb} of line element {ja + i} (after the split at plane {kb})")
-                xs = np.column_stack([xs, far[:, 0]])
+                outlines["v"] = np.vstack([cut, far[::-1]])
+                xs, ys = np.column_stack([xs, far[:, 0]]), np.column_stack([ys, far[:, 1]])
                 ps = np.concatenate([ps, far_3d[:, None]], axis=1)
                 ids = np.concatenate([ids, np.stack([np.arange(ja, jb), np.full(jb - ja, kb)], axis=-1)[:, None]], axis=1)
                 tab_col = np.column_stack([tab_col, np.ones(jb - ja, bool)])
             tab_row = np.zeros_like(tab_col)
             if r < nrow - 1:  # tab past the line-element cut at jb, on the next piece's first row
                 n = last - ka + 1
-                edge = np.column_stack([x[jb + 1, ka:last + 1] - x[jb, ka:last + 1], np.full(n, y[jb + 1] - y[jb])])
+                edge = np.column_stack([x[jb + 1, ka:last + 1] - x[jb, ka:last + 1], heights[jb + 1, ka:last + 1] - y[jb]])
                 widths["h"] = w = _tab_width(glue_tab, np.abs(edge[:, 1]))
-                far, far_3d = tab_edge(np.column_stack([x[jb, ka:last + 1], np.full(n, y[jb])]), edge,
+                cut = np.column_stack([x[jb, ka:last + 1], np.full(n, y[jb])])
+                far, far_3d = tab_edge(cut, edge,
                                        points[jb, ka:last + 1], points[jb + 1, ka:last + 1] - points[jb, ka:last + 1],
                                        w, 1, tol, lambda i: f"profile segment {jb} (after the split at profile point {jb})")
+                outlines["h"] = np.vstack([cut, far[::-1]])
                 if xs.shape[1] > n:   # the corner past both tabs: no face, any point on the row's line
-                    far = np.vstack([far, far[-1] + [xs[-1, -1] - xs[-1, -2], 0.0]])
+                    far = np.vstack([far, [far[-1, 0] + xs[-1, -1] - xs[-1, -2], far[-1, 1]]])
                     far_3d = np.vstack([far_3d, far_3d[-1]])
                 xs = np.vstack([xs, far[:, 0]])
                 ps = np.concatenate([ps, far_3d[None]], axis=0)
-                ys = np.append(ys, far[0, 1])
+                ys = np.vstack([ys, far[:, 1]])
                 cols = np.append(np.arange(ka, last), np.full(xs.shape[1] - 1 - (last - ka), kb))
                 ids = np.concatenate([ids, np.stack([np.full(len(cols), jb), cols], axis=-1)[None]], axis=0)
                 tab_col = np.vstack([tab_col, tab_col[-1]])
@@ -166,13 +174,14 @@ def split_pattern(grid: Reflection, flat_angle: float, glue_tab: float, columns:
                 block = np.broadcast_to(y[j0:j1 + 1, None], (j1 + 1 - j0, k1 + 1 - k0))
                 return np.column_stack([x[j0:j1 + 1, k0:k1 + 1].ravel(), block.ravel()]) - origin
             if (r, c) in vletter:
-                joins.append(Join(vletter[r, c], True, line(ja, jb, kb, kb), 0, widths.get("v", glue_tab)))
+                joins.append(Join(vletter[r, c], True, line(ja, jb, kb, kb), 0, widths.get("v", glue_tab),
+                                  outlines["v"] - origin))
             if c > 0 or (seam and ncol > 1):
                 edge_c = c - 1 if c > 0 else ncol - 1
                 joins.append(Join(vletter[r, edge_c], False, line(ja, jb, ka, ka), 0,
                                   widths.get("v", glue_tab)))
             if (r, c) in hletter:
-                joins.append(Join(hletter[r, c], True, line(jb, jb, ka, kb), 1, widths["h"]))
+                joins.append(Join(hletter[r, c], True, line(jb, jb, ka, kb), 1, widths["h"], outlines["h"] - origin))
             if r > 0:
                 joins.append(Join(hletter[r - 1, c], False, line(ja, ja, ka, kb), 1, 0.0))
             pieces.append((r, c, ja, jb, ka, kb, cp, origin, joins, (tab_row | split_col)[keep]))
@@ -181,7 +190,7 @@ def split_pattern(grid: Reflection, flat_angle: float, glue_tab: float, columns:
     tab_widths = {j.letter: j.width for p in pieces for j in p[8] if j.tab}
     out = []
     for number, (r, c, ja, jb, ka, kb, cp, origin, joins, cut_tabs) in enumerate(pieces, 1):
-        joins = [Join(j.letter, j.tab, j.line, j.across, tab_widths.get(j.letter, j.width)) for j in joins]
+        joins = [replace(j, width=tab_widths.get(j.letter, j.width)) for j in joins]
         shifted = CreasePattern(cp.vertices - origin, cp.vertices_3d, cp.faces, cp.face_grid, cp.edges,
                                 cp.assignment, cp.fold_angle, cp.edges_faces, cp.tab_faces)
         marks = match_marks(joins, f"{number} OF {count}") if count > 1 else ()
@@ -196,7 +205,7 @@ def auto_cuts(grid: Reflection, glue_tab: float, fits: Callable[[float, float], 
     that fit, with the tallest as low as can be, then the fewest columns, with the widest piece
     as narrow as can be.  ``rows``: line-element cuts already chosen.  No cuts when the whole
     design fits; a design with a panel that fits no sheet is an error."""
-    x, _, _ = tabbed_grid(grid, glue_tab)
+    x, _, _, _ = tabbed_grid(grid, glue_tab)
     y, J, K = grid.arc, len(grid.arc), grid.x.shape[1] - 1
     tab = glue_tab if glue_tab > 0 else DEFAULT_TAB   # the most a split's tab may add
 
@@ -254,24 +263,47 @@ def _balanced(n: int, ok: Callable[[int, int, float], bool], size: Callable[[int
 
 
 def match_marks(joins: list[Join], label: str) -> list[np.ndarray]:
-    """Strokes writing each join's letter in the strip along its cut line (on the tab, or where
-    the tab will cover the edge), and the piece's ``label`` after the letter of its first join."""
+    """Strokes writing each join's letter in the strip along its cut line (on the tab, inside its
+    chamfered outline, or where the tab will cover the edge), and the piece's ``label`` after
+    the letter of its first join."""
     strokes: list[np.ndarray] = []
     for index, join in enumerate(joins):
         text = join.letter + (f" {label}" if index == 0 else "")
         glyphs = text_strokes(text, 1.0)
         ratio = max(float(g[:, 0].max()) for g in glyphs)   # text length per mm of height
-        place = _text_place(join, ratio)
-        if place is None:
-            continue
-        start, along, up, height = place
-        strokes += [start + np.outer(g[:, 0] * height, along) + np.outer(g[:, 1] * height, up) for g in glyphs]
+        best: list[np.ndarray] = []
+        best_height = 0.0
+        for centre, along, up, height in _text_places(join, ratio):
+            for _ in range(SHRINKS):   # smaller about its centre until it lies on the tab
+                if height <= best_height:
+                    break
+                start = centre - along * ratio * height / 2 - up * height / 2
+                placed = [start + np.outer(g[:, 0] * height, along) + np.outer(g[:, 1] * height, up) for g in glyphs]
+                if join.outline is None or _inside(np.concatenate(placed), join.outline).all():
+                    best, best_height = placed, height
+                    break
+                height *= 0.8
+        strokes += best
     return strokes
 
 
-def _text_place(join: Join, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float] | None:
+SHRINKS = 12
+"""How many times a match mark is made smaller (by 0.8 each) to fit inside a chamfered tab."""
+
+
+def _inside(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Whether each point lies inside ``polygon`` (even-odd rule; any simple polygon)."""
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    px, py = points[:, 0, None], points[:, 1, None]
+    spans = (a[:, 1] > py) != (b[:, 1] > py)
+    dy = np.where(b[:, 1] != a[:, 1], b[:, 1] - a[:, 1], 1.0)
+    cross_x = a[:, 0] + (py - a[:, 1]) * (b[:, 0] - a[:, 0]) / dy
+    return (spans & (px < cross_x)).sum(axis=1) % 2 == 1
+
+
+def _text_places(join: Join, ratio: float) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, float]]:
     """Where text ``ratio`` times as long as high fits largest inside the strip ``join.width``
-    wide beside the cut line: (start, direction, up, height), or None.
+    wide beside the cut line: (centre, direction, up, height) of each place, largest first.
 
     Each segment of the cut line offers two places, centred on it: text straight across the
     strip's axis, or text along the segment.  A point ``mid + σ·d + τ·n`` of text along
@@ -279,7 +311,7 @@ def _text_place(join: Join, ratio: float) -> tuple[np.ndarray, np.ndarray, np.nd
     coordinates, with ``n = α·d + β·across``: it stays inside while ``|τβ| <= w/2`` and
     ``|σ| + |τα| <= L/2``."""
     across = np.eye(2)[join.across]
-    best = None
+    places = []
     for a, b in zip(join.line[:-1], join.line[1:]):
         seg = b - a
         length = float(np.linalg.norm(seg))
@@ -301,7 +333,6 @@ def _text_place(join: Join, ratio: float) -> tuple[np.ndarray, np.ndarray, np.nd
             cap_w = join.width / max(abs(beta) + ratio * abs(sigma_a), 1e-300)
             cap_l = length / max(abs(alpha_d) + ratio * abs(sigma_d), 1e-300)
             height = 0.8 * min(MARK_HEIGHT / 0.8, cap_w, cap_l)
-            if best is None or height > best[3]:
-                centre = (a + b) / 2 + across * join.width / 2
-                best = (centre - d * ratio * height / 2 - n * height / 2, d, n, height)
-    return best if best is not None and best[3] > 0 else None
+            if height > 0:
+                places.append(((a + b) / 2 + across * join.width / 2, d, n, height))
+    return sorted(places, key=lambda place: -place[3])

@@ -31,6 +31,9 @@ STYLES = {
     "F": LineStyle("flat crease (no fold)", "#b0b0b0", 0.15, (1.0, 1.0)),
 }
 """Line styles by crease assignment (B: the border, cut)."""
+MARKS = LineStyle("match marks (draw, do not cut)", "#000000", 0.2)
+"""A split piece's number and its tabs' and edges' letters: thin and solid, in the cut's colour
+as on the plotter's marks layer."""
 MONO_GREY = "#909090"
 """The flat creases' colour in ``mono``: grey stays the one hint that they are not folded."""
 

@@ -2,24 +2,27 @@
 map of pages, then the crease pattern at its printed size, tiled page after page.
 
 :func:`lay_out` takes a list of crease patterns, each printed on its own group of pages: the
-whole design today (:func:`build_template`), the pieces of a design split across sheets
-when splitting gives them.
+whole design, or the pieces of a design split across sheets
+(:func:`~foldfab.fabrication.pieces.design_pieces`, the pieces the plotter's programs draw),
+each with its match marks and the letters of the tabs and edges it is glued by.
 """
 
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from foldfab.geometry.crease_pattern import CreasePattern
+from foldfab.geometry.split import Join, Piece
 from foldfab.printing.creases import arc_lengths, crease_polylines, trim
 from foldfab.printing.marks import alignment_marks, crop_marks, legend, scale_bar, tile_map
 from foldfab.printing.model_view import model_view
 from foldfab.printing.page import Lines, Page, Shape, Text, rect
 from foldfab.printing.paper import PrintOptions, check_options
-from foldfab.printing.styles import LineStyle, line_styles
+from foldfab.printing.styles import MARKS, LineStyle, line_styles
 from foldfab.printing.tiles import FOOTER, Tiling, tile_patterns
 
 LINE = 4.2
@@ -53,16 +56,23 @@ def _bounds(cp: CreasePattern) -> tuple[float, float, float, float]:
     return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
 
 
-def build_template(design, options: PrintOptions) -> Template:
-    """The template of a whole design (one piece)."""
-    return lay_out([design.crease_pattern], design.job.name, design.crease_pattern, design.grid.closed, options)
+def build_template(design, options: PrintOptions, pieces: Sequence[Piece] = ()) -> Template:
+    """The template of a design: whole, or its ``pieces`` when it is split across sheets."""
+    if not pieces:
+        return lay_out([design.crease_pattern], design.job.name, design.crease_pattern, design.grid.closed, options)
+    return lay_out([p.crease_pattern for p in pieces], design.job.name, design.crease_pattern, design.grid.closed,
+                   options, [p.marks for p in pieces], [p.joins for p in pieces])
 
 
 def lay_out(pieces: list[CreasePattern], name: str, model: CreasePattern, closed: bool,
-            options: PrintOptions) -> Template:
+            options: PrintOptions, marks: Sequence[Sequence[np.ndarray]] = (),
+            joins: Sequence[Sequence[Join]] = ()) -> Template:
     """The pages of ``pieces`` (crease patterns, each on its own pages), the folded ``model``
-    and folding notes on the first page."""
+    and folding notes on the first page; ``marks[i]`` are piece ``i``'s match-mark strokes
+    (crease-pattern mm) and ``joins[i]`` its tabs and edges, named on its pages and in the notes."""
     check_options(options)
+    marks = list(marks) or [()] * len(pieces)
+    glued = _glued_text(joins) if joins else [""] * len(pieces)
     tilings = tile_patterns([_bounds(cp) for cp in pieces], options.paper, options.turnable, options.margin,
                             options.overlap, options.scale, options.paper_name)
     styles = line_styles(options.mono, options.flat)
@@ -71,21 +81,24 @@ def lay_out(pieces: list[CreasePattern], name: str, model: CreasePattern, closed
     first = [1]
     for t in tilings[:-1]:
         first.append(first[-1] + t.count)
-    pages = [_first_page(pieces, tilings, first, name, model, closed, styles, options, total)]
+    pages = [_first_page(pieces, tilings, first, name, model, closed, styles, options, total, joins)]
     for index, (cp, tiling) in enumerate(zip(pieces, tilings)):
         polylines = crease_polylines(cp, tuple(styles))
         boxes = {kind: _boxes(lines) for kind, lines in polylines.items()}
         arcs: dict[tuple[str, int], np.ndarray] = {}  # arc lengths of the polylines trimmed, found as needed
         piece = f"piece {index + 1} of {len(pieces)}  ·  " if len(pieces) > 1 else ""
         info = _info(cp, options.scale)
+        strokes = list(marks[index])
+        legend_styles = {**styles, "marks": MARKS} if strokes else styles
         for row in range(tiling.rows):
             for col in range(tiling.cols):
                 page = Page(*paper)
                 _tile(page, tiling, row, col, polylines, arcs, boxes, styles)
+                _marks(page, tiling, row, col, strokes)
                 number = len(pages) + 1
                 _header(page, options.margin, f"{name}  ·  {piece}row {row + 1} of {tiling.rows}, "
                                               f"column {col + 1} of {tiling.cols}", f"page {number} of {total}")
-                _footer(page, options.margin, styles, info, tiling, row, col)
+                _footer(page, options.margin, legend_styles, info, tiling, row, col, glued[index])
                 pages.append(page)
     bar = (options.margin, options.margin + 2.0)
     return Template(pages, tilings, first, [bar] * len(pages))
@@ -127,6 +140,27 @@ def _tile(page: Page, tiling: Tiling, row: int, col: int, polylines: dict[str, l
     page.items.append(alignment_marks(tiling, row, col))
 
 
+def _marks(page: Page, tiling: Tiling, row: int, col: int, strokes: list[np.ndarray]) -> None:
+    """The match marks (a piece's number, its tabs' and edges' letters) that reach into tile (row, col)."""
+    wx0, wy0, wx1, wy1 = tiling.window(row, col)
+    near = [s for s in strokes if s[:, 0].min() <= wx1 and s[:, 0].max() >= wx0
+            and s[:, 1].min() <= wy1 and s[:, 1].max() >= wy0]
+    if near:
+        page.items.append(Lines([tiling.to_page(s, row, col) for s in near], MARKS.color, MARKS.width,
+                                clip=tiling.area))
+
+
+def _glued_text(joins: Sequence[Sequence[Join]]) -> list[str]:
+    """For each piece, a line naming the piece each of its tabs and edges is glued to."""
+    tabs = {j.letter: number for number, piece in enumerate(joins, 1) for j in piece if j.tab}
+    edges = {j.letter: number for number, piece in enumerate(joins, 1) for j in piece if not j.tab}
+    return ["  ·  ".join([f"tab {j.letter} goes under piece {edges[j.letter]}" for j in piece
+                          if j.tab and j.letter in edges]
+                         + [f"edge {j.letter} takes the tab of piece {tabs[j.letter]}" for j in piece
+                            if not j.tab and j.letter in tabs])
+            for piece in joins]
+
+
 def _arc(arcs: dict[tuple[str, int], np.ndarray], lines: list[np.ndarray], kind: str, i: int) -> np.ndarray:
     if (kind, i) not in arcs:
         arcs[kind, i] = arc_lengths(lines[i])
@@ -149,13 +183,15 @@ def _header(page: Page, margin: float, left: str, right: str) -> None:
 
 
 def _footer(page: Page, margin: float, styles: dict[str, LineStyle], info: str, tiling: Tiling | None,
-            row: int | None, col: int | None) -> None:
-    """Scale bar, legend and the sheet's facts; the tile map on the right."""
+            row: int | None, col: int | None, glued: str = "") -> None:
+    """Scale bar, legend and the sheet's facts (and a piece's tabs and edges); the tile map on the right."""
     map_width = 36.0
     text_width = page.width - 2 * margin - (map_width + 4.0 if tiling else 0.0)
     page.items += scale_bar(margin, margin + 2.0)
     page.items += legend(margin, margin + 9.0, styles, text_width)
     page.items.append(Text(margin, margin + 16.0, info, size=7.0))
+    if glued:
+        page.items.append(Text(margin, margin + 20.0, glued, size=7.0))
     if tiling is not None:
         box = (page.width - margin - map_width, margin, page.width - margin, margin + FOOTER - 13.0)
         page.items += tile_map(tiling, row, col, box)
@@ -163,8 +199,14 @@ def _footer(page: Page, margin: float, styles: dict[str, LineStyle], info: str, 
                                + (f": row {row + 1}, column {col + 1}" if row is not None else ""), size=6.5))
 
 
-def folding_notes(pieces: list[CreasePattern], tilings: list[Tiling], closed: bool) -> list[str]:
-    """What to do with the printed pages, in order."""
+MAX_JOIN_NOTES = 12
+"""The most tabs the first page's notes name one by one."""
+
+
+def folding_notes(pieces: list[CreasePattern], tilings: list[Tiling], closed: bool,
+                  joins: Sequence[Sequence[Join]] = (), seam_tab: bool | None = None) -> list[str]:
+    """What to do with the printed pages, in order; ``seam_tab``: the whole design has a seam
+    tab (default: a piece has tab faces)."""
     notes = ["Print at 100 % (no 'fit to page'): the scale bar on every page must measure 50 mm."]
     if any(t.count > 1 for t in tilings):
         notes.append("Trim each page at the crop marks on its left and top edges where it has a neighbour, lay it "
@@ -172,17 +214,33 @@ def folding_notes(pieces: list[CreasePattern], tilings: list[Tiling], closed: bo
     notes += ["Cut along the solid outline.",
               "Score every fold line with a stylus or an empty ball-point pen along a ruler.",
               "Fold all valley folds (dashed) first, then the mountain folds (dash-dot), then fold them together."]
-    if any(cp.tab_faces.any() for cp in pieces):
+    if seam_tab is None:
+        seam_tab = any(cp.tab_faces.any() for cp in pieces)
+    seam_lettered = seam_tab and any(j.across == 0 for piece in joins for j in piece)  # cut at mirrors: a letter
+    if seam_tab and not seam_lettered:
         notes.append("The glue tab is the strip at the right end, past the last fold line: glue it under the "
                      "left end of the pattern so that the column closes.")
-    elif closed:
+    elif closed and not seam_tab:
         notes.append("The two ends of the pattern meet when folded: tape them edge to edge.")
     if len(pieces) > 1:
-        notes.append("Glue each piece's tab under the edge of the next piece that carries the same letter.")
+        notes.append("Glue each piece's tab under the edge of the next piece that carries the same letter"
+                     + _join_list(joins) + ".")
     return notes
 
 
-def _first_page(pieces, tilings, first, name, model, closed, styles, options, total) -> Page:
+def _join_list(joins: Sequence[Sequence[Join]]) -> str:
+    """Which tab meets which edge: ": tab A of piece 1 under edge A of piece 2, ..." (the first
+    :data:`MAX_JOIN_NOTES`)."""
+    edges = {j.letter: number for number, piece in enumerate(joins, 1) for j in piece if not j.tab}
+    pairs = [(j.letter, number, edges[j.letter]) for number, piece in enumerate(joins, 1) for j in piece
+             if j.tab and j.letter in edges]
+    if not pairs:
+        return ""
+    named = [f"tab {letter} of piece {a} under edge {letter} of piece {b}" for letter, a, b in pairs[:MAX_JOIN_NOTES]]
+    return ": " + ", ".join(named) + (", and so on" if len(pairs) > MAX_JOIN_NOTES else "")
+
+
+def _first_page(pieces, tilings, first, name, model, closed, styles, options, total, joins) -> Page:
     """The folded model, the facts, the notes and a map of every page over the pattern."""
     paper = tilings[0].paper
     page = Page(*paper)
@@ -204,7 +262,7 @@ def _first_page(pieces, tilings, first, name, model, closed, styles, options, to
     page.items += model_view(model, (m, model_top - model_height, page.width - m, model_top))
     y = model_top - model_height - 6.0
     chars = int((page.width - 2 * m) / (8.0 * 0.5 * 25.4 / 72))
-    for i, note in enumerate(folding_notes(pieces, tilings, closed)):
+    for i, note in enumerate(folding_notes(pieces, tilings, closed, joins, bool(model.tab_faces.any()))):
         for k, line in enumerate(textwrap.wrap(note, chars - 4)):
             page.items.append(Text(m + 4.0 if k else m, y, (f"{i + 1}. " if not k else "") + line, size=8.0))
             y -= LINE

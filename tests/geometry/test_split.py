@@ -71,6 +71,69 @@ def test_open_pieces_glue_back_into_the_design(turns, prof, data):
     assert_pieces_rebuild(cp, pieces)
 
 
+def _convex_ccw(points: np.ndarray, tol: float) -> bool:
+    """Whether a polygon turns left (or runs straight) at every corner, enclosing some area."""
+    e = np.roll(points, -1, axis=0) - points
+    turn = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+    return bool(np.all(turn >= -tol) and turn.sum() > 0)
+
+
+def _distance_to_polyline(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    a, b = line[:-1], line[1:]
+    d = b - a
+    t = np.clip(np.einsum("pij,ij->pi", points[:, None] - a, d) / np.maximum((d * d).sum(axis=1), 1e-300), 0, 1)
+    return np.linalg.norm(points[:, None] - (a + t[..., None] * d), axis=2).min(axis=1)
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(2, 8).map(lambda k: 2 * k), radius=st.floats(40, 200), prof=profiles,
+       tab=st.floats(0.05, 0.45), data=st.data())
+def test_glue_tabs_are_convex_with_chamfered_ends(n, radius, prof, tab, data):
+    """Every tab, of a cut or the seam: its faces convex quadrilaterals (or triangles), its
+    glued edge the cut line, its outer edge shorter at both ends (chamfered) and never farther
+    from the cut than the tab's width, every corner a corner of the piece's faces."""
+    grid = reflect(_profile(*prof, 0.3 * radius / n), templates.regular(n, radius))
+    width = tab * grid.segment_lengths.min()
+    assume(width > 0.01)
+    cp = build_crease_pattern(grid, 1.0, width)
+    columns = _cuts(data.draw, grid.x.shape[1] - 2, 3)
+    rows = _cuts(data.draw, grid.x.shape[0] - 2, 2)
+    try:
+        pieces = split_pattern(grid, 1.0, width, columns, rows)
+    except DesignError as exc:
+        assert "glue_tab" in str(exc)
+        assume(False)
+    size = float(np.ptp(cp.vertices, axis=0).max())
+    tol = 1e-9 * size
+    seam = cp.vertices[np.unique(cp.faces[cp.tab_faces])]
+    assert seam[:, 1].min() == 0 and seam[:, 1].max() == pytest.approx(grid.arc[-1])
+    for piece in [*pieces, None]:
+        pc = cp if piece is None else piece.crease_pattern
+        for f, poly in enumerate(pc.face_polygons()):
+            if pc.tab_faces[f]:
+                assert len(poly) in (3, 4) and _convex_ccw(pc.vertices[poly], tol), f"tab face {f} is not convex"
+        if piece is None:   # the whole design's seam tab: its far corners' heights inside the cut's
+            far = pc.vertices[np.setdiff1d(pc.faces[pc.tab_faces], pc.faces[~pc.tab_faces])]
+            assert 0 < far[:, 1].min() and far[:, 1].max() < grid.arc[-1]
+            continue
+        for join in (j for j in piece.joins if j.tab):
+            m = len(join.outline) // 2
+            glued, outer = join.outline[:m], join.outline[m:][::-1]
+            np.testing.assert_allclose(glued[:len(join.line)], join.line, atol=tol)   # glued along the cut
+            assert np.all(np.abs(glued[:, join.across] - glued[0, join.across]) <= tol) or join.across == 0
+            corners = np.linalg.norm(join.outline[:, None] - pc.vertices[None], axis=2).min(axis=1)
+            assert np.all(corners <= tol), "the tab's outline is made of the piece's own corners"
+            along = 1 - join.across
+            low, high = sorted((glued[0, along], glued[-1, along]))
+            ends = outer[[0, -1], along]
+            # the seam tab stays as it is: chamfered where the design ends, cut square at a row's cut
+            seam = join.across == 0 and piece.columns[1] == grid.x.shape[1] - 1
+            bottom, top = (piece.rows[0] == 0, piece.rows[1] == grid.x.shape[0] - 1) if seam else (True, True)
+            assert (not bottom or low + tol < ends[0]) and (not top or ends[1] < high - tol), "the ends are chamfered"
+            assert abs(ends[1] - ends[0]) < high - low or not (bottom or top), "the outer edge is shorter"
+            assert np.all(_distance_to_polyline(outer, glued) <= join.width + tol)
+
+
 def _hexagon():
     grid = reflect(np.array([[0, 0], [4, 20], [0, 40], [3, 60]], float), templates.regular(8, 60))
     return grid, build_crease_pattern(grid, 1.0, 5.0)

@@ -4,6 +4,7 @@ the 50 mm scale bar measured in pages rendered at 600 dpi."""
 
 from __future__ import annotations
 
+import json
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -14,9 +15,10 @@ from foldfab.design import load_design
 from foldfab.job import load_job
 from foldfab.printing.creases import crease_polylines
 from foldfab.printing.marks import SCALE_BAR, SCALE_BAR_HEIGHT
-from foldfab.printing.output import write_template
+from foldfab.printing.output import template_pieces, write_template
 from foldfab.printing.paper import PrintOptions, parse_paper
 from foldfab.printing.styles import STYLES
+from foldfab.printing.template import build_template
 from helpers import HEXAGON, JOBS
 from helpers.cli import run, write_job
 from helpers.poppler import DPI, pdfinfo, pdftotext, pixel, render, runs
@@ -41,8 +43,7 @@ def test_every_job_prints_a_pdf_pdfinfo_reads(job, tmp_path, capsys):
     job_scale = load_job(job).fabrication.get("scale", 1.0)
     assert info["scale"] == (1.0 if job_scale == "fit" else job_scale)  # a plotter's "fit" prints at true size
     pages, sizes = pdfinfo(out)
-    rows, cols = info["tiles"][0]
-    assert pages == info["pages"] == 1 + rows * cols
+    assert pages == info["pages"] == 1 + sum(rows * cols for rows, cols in info["tiles"])
     a4 = sorted(round(v, 1) for v in (210.0, 297.0))
     assert all(sorted(round(v, 1) for v in size) == a4 for size in sizes)
     assert len(sizes) == pages
@@ -64,10 +65,11 @@ def test_scale_bar_measures_50_mm_at_600_dpi(job, tmp_path):
         assert abs(length - SCALE_BAR) <= 0.5, f"page {page}: the scale bar measures {length:.3f} mm"
 
 
-def straight_segment(design, kind: str, window, min_length: float = 10.0):
-    """The longest straight piece (between two vertices) of a ``kind`` crease inside ``window``."""
+def straight_segment(cp, kind: str, window, min_length: float = 10.0):
+    """The longest straight piece (between two vertices) of a ``kind`` crease of crease pattern
+    ``cp`` inside ``window``."""
     best, best_length = None, min_length
-    for line in crease_polylines(design.crease_pattern, (kind,))[kind]:
+    for line in crease_polylines(cp, (kind,))[kind]:
         for a, b in zip(line[:-1], line[1:]):
             inside = all(window[0] + 3 < p[0] < window[2] - 3 and window[1] + 3 < p[1] < window[3] - 3 for p in (a, b))
             if inside and np.hypot(*(b - a)) >= best_length:
@@ -75,17 +77,18 @@ def straight_segment(design, kind: str, window, min_length: float = 10.0):
     return best
 
 
-def sample_crease(out: Path, template, design, kind: str):
-    """Ink runs (ink?, length in mm) along the middle of the longest straight ``kind`` crease on
-    the first tile page, 1.5 mm clear of its ends (where other creases meet it), and the colours
-    of its inked pixels; None when the first page has no such crease 10 mm long."""
-    tiling = template.tilings[0]
-    segment = straight_segment(design, kind, tiling.window(0, 0))
+def sample_crease(out: Path, template, cp, kind: str, piece: int = 0):
+    """Ink runs (ink?, length in mm) along the middle of the longest straight ``kind`` crease of
+    ``cp`` (the crease pattern of piece ``piece``) on its first tile page, 1.5 mm clear of its
+    ends (where other creases meet it), and the colours of its inked pixels; None when that
+    page has no such crease 10 mm long."""
+    tiling = template.tilings[piece]
+    segment = straight_segment(cp, kind, tiling.window(0, 0))
     if segment is None:
         return None
     pa, pb = tiling.to_page(np.array(segment), 0, 0)
     box = (min(pa[0], pb[0]) - 1.0, min(pa[1], pb[1]) - 1.0, max(pa[0], pb[0]) + 1.0, max(pa[1], pb[1]) + 1.0)
-    image = render(out, template.page_of(0, 0, 0) + 1, box, template.pages[1].height)
+    image = render(out, template.page_of(piece, 0, 0) + 1, box, template.pages[1].height)
     length = np.hypot(*(pb - pa))
     steps = np.arange(1.5, length - 1.5, 1 / MM)
     points = pa + (pb - pa) / length * steps[:, None]
@@ -116,7 +119,7 @@ STYLE_CASES = [(job, False) for job in JOBS] + [(HEXAGON, True)]
 def test_valley_dashed_mountain_dash_dot_cut_solid(job, mono, tmp_path):
     design = load_design(job)
     template, [out] = write_template(design, tmp_path / "t.pdf", options(mono=mono))
-    sampled = {kind: sample_crease(out, template, design, kind) for kind in "VMB"}
+    sampled = {kind: sample_crease(out, template, design.crease_pattern, kind) for kind in "VMB"}
     assert sampled["V"] is not None and sampled["B"] is not None
     colours = {"V": [0, 114, 178], "M": [213, 94, 0]}
     for kind, (found, ink) in ((k, v) for k, v in sampled.items() if v is not None):
@@ -227,3 +230,58 @@ def test_svg_pages_are_written_all_or_none(tmp_path, capsys):
     rc, out, err = run(capsys, "print", HEXAGON, "-o", tmp_path / "t.svg")
     assert rc == 2 and "-o" in err and "cannot write" in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t-2.svg"]
+
+
+LANTERN = HEXAGON.parent / "lantern-three-sheets.toml"
+
+
+def test_a_split_job_prints_its_pieces_with_their_tabs_and_letters(tmp_path, capsys):
+    out = tmp_path / "l.pdf"
+    rc, stdout, err = run(capsys, "print", LANTERN, "-o", out, "--json")
+    assert rc == 0, err
+    info = json.loads(stdout)
+    design = load_design(LANTERN)
+    pieces = template_pieces(design, options())
+    assert info["pieces"] == len(pieces) == 3
+    template = build_template(design, options(), pieces)   # the layout the command printed
+    pages, _ = pdfinfo(out)
+    assert pages == info["pages"] == len(template.pages) == 1 + sum(rows * cols for rows, cols in info["tiles"])
+    first = " ".join(pdftotext(out, 1).split())
+    assert "tab A of piece 1 under edge A of piece 2, tab B of piece 2 under edge B of piece 3" in first
+    for index, (piece, tiling) in enumerate(zip(pieces, template.tilings)):
+        for row in range(tiling.rows):
+            for col in range(tiling.cols):
+                text = " ".join(pdftotext(out, template.page_of(index, row, col) + 1).split())
+                assert f"piece {index + 1} of 3" in text
+                for join in piece.joins:
+                    assert (f"tab {join.letter} goes under piece" if join.tab else
+                            f"edge {join.letter} takes the tab of piece") in text, (index, join.letter)
+    # a valley fold of piece 2 where its own page prints it: dashed, in the valley colour
+    found, ink = sample_crease(out, template, pieces[1].crease_pattern, "V", piece=1)
+    assert_pattern(found, list(STYLES["V"].dash))
+    assert np.all(np.abs(ink.mean(axis=0) - [0, 114, 178]) < 30)
+    # piece 2's match marks (its number, its tab's and edge's letters) are drawn in black
+    tiling = template.tilings[1]
+    strokes = [s for s in pieces[1].marks if len(s) > 1]
+    assert strokes
+    for stroke in strokes[:: max(1, len(strokes) // 6)]:
+        a, b = max(zip(stroke[:-1], stroke[1:]), key=lambda ab: np.hypot(*(ab[1] - ab[0])))
+        x, y = tiling.to_page(((a + b) / 2)[None], 0, 0)[0]
+        box = (x - 1.0, y - 1.0, x + 1.0, y + 1.0)
+        image = render(out, template.page_of(1, 0, 0) + 1, box, template.pages[1].height).astype(int)
+        r, c = pixel(box, x, y)
+        assert image[r - 2:r + 3, c - 2:c + 3].max(axis=-1).min() < 100, "a mark's stroke is inked black"
+
+
+def test_split_auto_on_the_command_line_fits_the_sheet_or_the_paper(tmp_path, capsys):
+    text = LANTERN.read_text().replace('split = "auto"\n', "")
+    job = write_job(tmp_path, text)
+    whole = json.loads(run(capsys, "print", job, "-o", tmp_path / "w.pdf", "--json")[1])
+    assert whole["pieces"] == 1
+    split = json.loads(run(capsys, "print", job, "-o", tmp_path / "s.pdf", "--json", "--split", "auto")[1])
+    assert split["pieces"] == 3 and len(split["tiles"]) == 3
+    assert "piece 3 of 3" in " ".join(pdftotext(tmp_path / "s.pdf", split["pages"]).split())
+    no_sheet = write_job(tmp_path, text.replace('sheet = "A4 landscape"\n', ""), "bare.toml")
+    rc, out, err = run(capsys, "print", no_sheet, "-o", tmp_path / "p.pdf", "--split", "auto", "--paper", "[500, 297]")
+    assert rc == 0, err
+    assert "2 pieces of" in out   # fitted to the paper: two halves of 379 mm fit 480 mm
