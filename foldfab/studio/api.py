@@ -136,6 +136,20 @@ def error_cause(message: str) -> dict[str, Any]:
     return {"view": "file"}
 
 
+def feasible_band(profile: np.ndarray, trajectory: np.ndarray) -> list[list[float]] | None:
+    """The region where profile points (offset included) may go, as a polygon reaching far beyond the
+    design (:class:`~foldfab.geometry.feasible.Feasible`), or None when the trajectory has none."""
+    from foldfab.geometry.feasible import Feasible
+
+    try:
+        region = Feasible.of(trajectory)
+    except FoldfabError:
+        return None
+    size = max(float(np.ptp(profile, axis=0).max()), float(np.ptp(trajectory, axis=0).max()), 1.0)
+    (u, v), reach = profile.mean(axis=0), 20 * size
+    return region.polygon((u - reach, v - reach, u + reach, v + reach)).round(6).tolist()
+
+
 # --- request fields -------------------------------------------------------------------------
 
 _REQUIRED = object()
@@ -195,7 +209,8 @@ class Studio:
         return {("GET", "/api/state"): self.state, ("POST", "/api/design"): self.design,
                 ("POST", "/api/open"): self.open, ("POST", "/api/files"): self.files,
                 ("POST", "/api/save"): self.save, ("POST", "/api/export"): self.export,
-                ("POST", "/api/preview"): self.preview, ("POST", "/api/queue"): self.queue}
+                ("POST", "/api/preview"): self.preview, ("POST", "/api/queue"): self.queue,
+                ("POST", "/api/fit-template"): self.fit_template}
 
     def handle(self, method: str, path: str, body: bytes = b"") -> Response:
         """Answer one API request; user mistakes are 4xx JSON, never an exception."""
@@ -330,6 +345,7 @@ class Studio:
         try:
             extra["polylines"] = {"profile": (profile_points(job) - np.array(job.profile.offset)).tolist(),
                                   "trajectory": trajectory_points(job).tolist()}
+            extra["feasible"] = feasible_band(profile_points(job), trajectory_points(job))
         except FoldfabError:
             pass
         return ApiError(message, cause=error_cause(message.removeprefix(f"{job.path}: ")), **extra)
@@ -398,6 +414,7 @@ class Studio:
             "penetrating": cp.faces[np.unique(design.penetrations)].astype(np.uint32),
         }
         header = {"summary": summary(design), "fit": fit, "closed": grid.closed,
+                  "feasible": feasible_band(grid.profile, grid.trajectory),
                   "corner_seam": grid.corner_seam,
                   "edge_groups": {k: [s, c] for k, s, c in zip(EDGE_GROUPS, starts, counts)},
                   "seq": seq}
@@ -490,3 +507,16 @@ class Studio:
             store.close()
         return {"ids": ids, "queue": str(store.location), "device": device.name, "port": port,
                 "program_bytes": len(fab.program.text)}
+
+    def fit_template(self, request: dict) -> dict:
+        """The request's template with sizes that leave its profile room (:func:`~foldfab.geometry.feasible.fit_template`):
+        ``changed`` is what the user moved (a parameter or "template"), ``previous`` its last value."""
+        from foldfab.design import profile_points
+        from foldfab.geometry.feasible import fit_template
+
+        job = self._job(request)
+        spec = job.trajectory
+        changed = _field(request, "changed", str, "template")
+        previous = _field(request, "previous", (int, float), None)
+        params, note = fit_template(spec.template, dict(spec.params), profile_points(job), changed, previous)
+        return {"trajectory": {**request["job"]["trajectory"], **params}, "note": note}
