@@ -4,6 +4,8 @@
 import { along, bounds, editorView, errorPoint, fmt, markError, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
 
+export const BAND_FILL = "rgba(46, 164, 78, 0.13)", BAND_EDGE = "#2da44e";
+
 export class ProfileView {
   constructor(studio, section) {
     this.studio = studio;
@@ -111,11 +113,33 @@ export class ProfileView {
     return errorPoint(this.studio, "profile");
   }
 
+  /** The region where points may go (the server's polygon, offset included), or null. */
+  band() {
+    const { error, shown } = this.studio;
+    return (error ? error.feasible : shown && shown.feasible) || null;
+  }
+
+  /** Shade the region where points may go: the same rule as the "meets ... before ..." error. */
+  drawBand(view, ctx, [ou, ov]) {
+    const band = this.band();
+    if (!band || band.length < 3) return;
+    view.path(ctx, band.map(([u, v]) => [u - ou, v - ov]), true);
+    ctx.fillStyle = BAND_FILL;
+    ctx.fill();
+    ctx.save();
+    ctx.setLineDash([4, 3]);
+    ctx.strokeStyle = BAND_EDGE;
+    ctx.lineWidth = 1;
+    ctx.stroke();
+    ctx.restore();
+  }
+
   draw(view, ctx) {
     view.drawGrid(ctx);
     if (!this.studio.job) return;
     const points = this.points();
     const [ou, ov] = this.offset();
+    this.drawBand(view, ctx, [ou, ov]);
     const [dx, dy] = view.toScreen(-ou, -ov);
     // The trajectory's level (v = 0) and line (u = 0), then the trajectory itself, end-on.
     ctx.save();

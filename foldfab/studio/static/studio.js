@@ -38,7 +38,7 @@ export function decode(buffer) {
     profile: rows(a.profile, 2), trajectoryPoints: rows(a.trajectory, 3), planes: a.planes,
     paths: a.paths, pathShape: header.arrays.paths.shape.slice(0, 2),
     cpVertices: v, cpBox: box, modelVertices: a.model_vertices, edges: a.edges, triangles: a.triangles,
-    penetrating: a.penetrating,
+    penetrating: a.penetrating, feasible: header.feasible,
   };
 }
 

@@ -1,0 +1,80 @@
+"""Driving the studio in Debian's Chromium with Playwright: launching, waiting for renders, reading pixels.
+
+Waits are for the studio's own signal (``<body data-render-count>`` grows and ``data-status`` is no
+longer ``busy``), never a fixed time, and each has a timeout.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+import pytest
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--enable-unsafe-swiftshader"]
+TIMEOUT_MS = 20_000
+
+
+@contextlib.contextmanager
+def chromium():
+    """A headless Chromium (fails, never skips, when Chromium or Playwright is missing)."""
+    if not CHROMIUM.is_file():
+        pytest.fail(f"Chromium not found at {CHROMIUM}: install it (Debian: apt-get install -y chromium)",
+                    pytrace=False)
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        pytest.fail("Playwright is not installed: pip install playwright", pytrace=False)
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, timeout=TIMEOUT_MS)
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
+@contextlib.contextmanager
+def studio_page(browser, url: str, width: int = 1400, height: int = 900):
+    """A page showing the studio at ``url`` once its first design is drawn; JavaScript errors fail the test."""
+    context = browser.new_context(viewport={"width": width, "height": height})
+    page = context.new_page()
+    page.set_default_timeout(TIMEOUT_MS)
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.goto(url)
+    wait_render(page, 0)
+    try:
+        yield page
+        assert not errors, f"JavaScript errors: {errors}"
+    finally:
+        context.close()
+
+
+def renders(page) -> int:
+    return int(page.evaluate("document.body.dataset.renderCount"))
+
+
+def wait_render(page, before: int) -> str:
+    """Wait until a response newer than ``before`` renders and no edit is pending; the status."""
+    page.wait_for_function("n => Number(document.body.dataset.renderCount) > n && document.body.dataset.status !== 'busy'"
+                           " && !window.studio.inflight && !window.studio.fitting", arg=before, timeout=TIMEOUT_MS)
+    return page.evaluate("document.body.dataset.status")
+
+
+def load_job(page, job: dict) -> str:
+    """Show ``job`` (its tables) as if opened; the status once drawn."""
+    before = renders(page)
+    page.evaluate("job => window.studio.load(job, window.studio.path, 'test.toml')", job)
+    return wait_render(page, before)
+
+
+def pixel(page, view: str, world: tuple[float, float]) -> list[int]:
+    """The RGBA of the canvas of 2D ``view`` (profile, trajectory, creases) at world point ``world``."""
+    return page.evaluate("""([view, x, y]) => {
+        const v = window.studio[view].view, dpr = window.devicePixelRatio || 1;
+        const [sx, sy] = v.toScreen(x, y);
+        return Array.from(v.canvas.getContext("2d").getImageData(Math.round(sx * dpr), Math.round(sy * dpr), 1, 1).data);
+    }""", [view, *world])
