@@ -95,3 +95,121 @@ def test_the_feasible_band_is_drawn_up_to_the_limit_the_error_names(page):
     assert wait_render(page, before) == "error"
     assert "6.341" in page.evaluate("window.studio.error.error")
     assert sum(band_pixels(page, limit - 0.6, heights)) >= 5 and sum(band_pixels(page, limit + 0.6, heights)) == 0
+
+
+RESIZED = """() => {
+    const s = window.studio, same = (c, w) => Math.abs(c.getBoundingClientRect().width - w) < 1;
+    return [s.profile.view, s.trajectory.view, s.creases.view].every(v => same(v.canvas, v.width))
+        && same(s.model.canvas, s.model.canvas.width / (window.devicePixelRatio || 1));
+}"""
+
+EXTREMES = """() => {
+    const s = window.studio, shown = s.shown;
+    const extremes = (points) => {
+        const pick = (key) => points.reduce((a, b) => (key(b) > key(a) ? b : a));
+        return [pick(p => p[0]), pick(p => -p[0]), pick(p => p[1]), pick(p => -p[1])];
+    };
+    const [ou, ov] = s.job.profile.offset;
+    const paths = [];
+    for (let i = 0; i < shown.paths.length; i += 3) paths.push([shown.paths[i], shown.paths[i + 1]]);
+    const [x0, y0, x1, y1] = shown.cpBox;
+    const views = {profile: extremes([...s.profilePoints(), [-ou, -ov]]),
+                   trajectory: extremes([...s.trajectoryPoints(), ...paths]),
+                   creases: [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]};
+    const out = {};
+    for (const [name, points] of Object.entries(views)) {
+        const v = s[name].view, ctx = v.canvas.getContext("2d"), dpr = window.devicePixelRatio || 1;
+        out[name] = {size: [v.width, v.height], hint: (() => { const h = v.canvas.parentElement.querySelector(".hint");
+                                                              return h ? h.offsetTop : v.height; })(),
+            points: points.map(p => {
+                const [sx, sy] = v.toScreen(p[0], p[1]);
+                let ink = 0;   // pixels darker than the grid within 3 px: the design is drawn there
+                for (let dx = -3; dx <= 3; dx++) for (let dy = -3; dy <= 3; dy++) {
+                    const [r, g, b] = ctx.getImageData(Math.round((sx + dx) * dpr), Math.round((sy + dy) * dpr), 1, 1).data;
+                    if (r + g + b < 3 * 200) ink++;
+                }
+                return [sx, sy, ink];
+            })};
+    }
+    return out;
+}"""
+
+MODEL_PIXELS = """() => {
+    const m = window.studio.model, c = m.canvas;
+    m.draw();                                  // read the drawing buffer in the same task as the draw
+    const copy = document.createElement("canvas");
+    copy.width = c.width; copy.height = c.height;
+    const ctx = copy.getContext("2d");
+    ctx.drawImage(c, 0, 0);
+    const data = ctx.getImageData(0, 0, c.width, c.height).data;
+    const box = [Infinity, Infinity, -Infinity, -Infinity];
+    for (let y = 0; y < c.height; y++) for (let x = 0; x < c.width; x++) {
+        const i = 4 * (y * c.width + x);
+        if (data[i] + data[i + 1] + data[i + 2] < 3 * 245) {
+            box[0] = Math.min(box[0], x); box[1] = Math.min(box[1], y); box[2] = Math.max(box[2], x); box[3] = Math.max(box[3], y);
+        }
+    }
+    return {box, size: [c.width, c.height], ndc: m.screenBox()};
+}"""
+
+
+def check_whole_design(page) -> None:
+    page.wait_for_function(RESIZED)
+    for name, view in page.evaluate(EXTREMES).items():
+        width, height = view["size"]
+        for sx, sy, ink in view["points"]:
+            assert 2 <= sx <= width - 2 and 2 <= sy <= min(height, view["hint"]) - 2, f"{name}: ({sx}, {sy}) cropped"
+            assert ink > 0, f"{name}: nothing drawn at its extreme point ({sx:.0f}, {sy:.0f})"
+    model = page.evaluate(MODEL_PIXELS)
+    x0, y0, x1, y1 = model["ndc"]
+    assert -1 < x0 and x1 < 1 and -1 < y0 and y1 < 1, f"3D model outside its panel: {model['ndc']}"
+    assert max(x1 - x0, y1 - y0) > 1.4, f"3D model fills too little of its panel: {model['ndc']}"
+    (px0, py0, px1, py1), (w, h) = model["box"], model["size"]
+    assert 0 < px0 and px1 < w - 1 and 0 < py0 and py1 < h - 1, f"3D model pixels touch the edge: {model['box']} of {w}x{h}"
+    assert max((px1 - px0) / w, (py1 - py0) / h) > 0.7
+
+
+def test_every_view_shows_its_whole_design_at_1024x700(page):
+    page.evaluate("window.studio.job.profile.offset = [-4, 0]; window.studio.syncControls()")
+    before = renders(page)
+    page.evaluate("window.studio.edit()")
+    assert wait_render(page, before) == "ok"
+    page.set_viewport_size({"width": 1024, "height": 700})
+    check_whole_design(page)
+    page.set_viewport_size({"width": 1300, "height": 850})     # and back: the views refit again
+    check_whole_design(page)
+    assert set_param(page, "corners", 10) == "ok"              # an edit keeps the 3D model fitted
+    check_whole_design(page)
+
+
+def test_labels_hints_and_the_error_box_leave_the_profile_visible(page):
+    page.set_viewport_size({"width": 1024, "height": 700})
+    page.wait_for_function(RESIZED)
+    label = page.evaluate("window.studio.profile.uLabel")
+    hint = page.evaluate("""() => { const h = document.querySelector('#view-profile .hint'),
+        c = window.studio.profile.view.canvas.getBoundingClientRect(), r = h.getBoundingClientRect();
+        return {top: r.top - c.top, left: r.left - c.left, right: r.right - c.left}; }""")
+    assert label["y"] + label["h"] <= hint["top"], f"the u label {label} overlaps the hint {hint}"
+    before = renders(page)
+    page.evaluate("window.studio.job.profile.points[1] = [30, 10]; window.studio.edit()")
+    assert wait_render(page, before) == "error"
+    box = page.evaluate("document.querySelector('#view-profile .error').getBoundingClientRect().toJSON()")
+    assert box["height"] > 10
+    lowest = page.evaluate("""() => { const s = window.studio, v = s.profile.view;
+        return Math.max(...s.profilePoints().map(p => v.toPage(p[0], p[1])[1])); }""")
+    assert lowest + 5 <= box["top"], "the error box covers the lowest profile point"
+
+
+def test_export_names_follow_the_jobs_name(page):
+    assert page.input_value("#export-path") == "untitled.fold"
+    page.fill("#job-name", "tall star")
+    assert page.input_value("#export-path") == "tall-star.fold"
+    before = renders(page)
+    page.select_option("#template", "star")
+    wait_render(page, before)
+    page.select_option("#export-kind", ".glb")
+    assert page.input_value("#export-path") == "tall-star.glb"
+    page.fill("#export-path", "out/mine.glb")                   # a path the user typed stays theirs
+    page.fill("#job-name", "other")
+    page.select_option("#export-kind", ".svg")
+    assert page.input_value("#export-path") == "out/mine.svg"

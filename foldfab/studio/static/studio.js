@@ -7,6 +7,7 @@ import { ProfileView } from "./profile.js";
 import { TrajectoryView } from "./trajectory.js";
 import { CreaseView } from "./creases.js";
 import { ModelView } from "./model.js";
+import { exportPath } from "./names.js";
 
 const TOKEN = document.querySelector('meta[name="foldfab-token"]').content;
 const $ = (selector) => document.querySelector(selector);
@@ -103,6 +104,7 @@ class Studio {
     this.error = null;
     this.current = { profile: null, trajectory: null };
     $("#job-path").value = display;
+    this.exportTyped = false;
     this.setExportPath();
     this.history = [];
     this.at = -1;
@@ -259,7 +261,8 @@ class Studio {
   }
 
   bind() {
-    $("#job-name").addEventListener("input", (e) => { this.job.design.name = e.target.value; this.edit(); });
+    $("#job-name").addEventListener("input", (e) => { this.job.design.name = e.target.value; this.setExportPath(); this.edit(); });
+    $("#export-path").addEventListener("input", () => { this.exportTyped = true; });
     $("#job-name").addEventListener("change", () => this.commit());
     this.bindNumber(["#offset-u", "#offset-v"], () => {
       this.job.profile.offset = [parseFloat($("#offset-u").value) || 0, parseFloat($("#offset-v").value) || 0];
@@ -287,9 +290,11 @@ class Studio {
     });
   }
 
+  /** The export field follows the job's name (and folder) until the user types a path of their own. */
   setExportPath() {
-    const job = $("#job-path").value || "untitled.toml";
-    $("#export-path").value = job.replace(/\.toml$/i, "") + $("#export-kind").value;
+    const kind = $("#export-kind").value, field = $("#export-path");
+    if (this.exportTyped) field.value = field.value.replace(/\.[^./]*$/, "") + kind;
+    else field.value = exportPath($("#job-path").value, this.job && this.job.design.name, kind);
   }
 
   // --- status and errors
@@ -367,6 +372,7 @@ class Studio {
     this.job = r.json.job;
     this.commit();
     $("#job-path").value = r.json.display;
+    this.setExportPath();
     this.message(`saved ${r.json.written}`);
     document.body.dataset.saved = r.json.written;
     this.syncControls();

@@ -251,14 +251,27 @@ export class TrajectoryView {
     this.render();
   }
 
-  fit() {
+  /** The trajectory and, when shown, the line elements' paths around it (they reach past it). */
+  box() {
     const box = bounds(this.points());
-    if (box) this.view.fit(box, 0.12);
+    const shown = this.studio.shown;
+    if (!box || !shown || this.studio.error) return box;
+    const p = shown.paths;
+    for (let i = 0; i < p.length; i += 3) {
+      box[0] = Math.min(box[0], p[i]); box[2] = Math.max(box[2], p[i]);
+      box[1] = Math.min(box[1], p[i + 1]); box[3] = Math.max(box[3], p[i + 1]);
+    }
+    return box;
+  }
+
+  fit() {
+    const box = this.box();
+    if (box) this.view.fit(box, 0.08);
   }
 
   render() {
     // A template that outgrows the view (or shrinks in it) is refitted; a polyline being edited stays put.
-    const box = bounds(this.points());
+    const box = this.box();
     if (!this.view.fitted) this.fit();
     else if (box && !this.isPolyline()) this.view.keepInView(box);
     this.view.draw();
