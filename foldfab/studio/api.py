@@ -210,7 +210,7 @@ class Studio:
                 ("POST", "/api/open"): self.open, ("POST", "/api/files"): self.files,
                 ("POST", "/api/save"): self.save, ("POST", "/api/export"): self.export,
                 ("POST", "/api/preview"): self.preview, ("POST", "/api/queue"): self.queue,
-                ("POST", "/api/fit-template"): self.fit_template}
+                ("POST", "/api/fit-template"): self.fit_template, ("POST", "/api/fold"): self.fold}
 
     def handle(self, method: str, path: str, body: bytes = b"") -> Response:
         """Answer one API request; user mistakes are 4xx JSON, never an exception."""
@@ -520,3 +520,17 @@ class Studio:
         previous = _field(request, "previous", (int, float), None)
         params, note = fit_template(spec.template, dict(spec.params), profile_points(job), changed, previous)
         return {"trajectory": {**request["job"]["trajectory"], **params}, "note": note}
+
+    def fold(self, request: dict) -> Response:
+        """The design part-way folded (``t`` from 0, flat, to 1, folded) with its strain per vertex; binary
+        answer (:func:`pack`) on the model's vertex indices (:func:`~foldfab.geometry.fold.fold_state`)."""
+        from foldfab.geometry.fold import fold_state
+
+        t = _field(request, "t", (int, float))
+        if not 0 <= t <= 1:
+            raise ApiError(f"request: 't' must be from 0 to 1, got {t}")
+        state = fold_state(self._build(request).crease_pattern, t)
+        header = {"t": t, "max_strain": round(float(state.face_strain.max(initial=0.0)), 6),
+                  "seq": _field(request, "seq", int, 0)}
+        return Response(200, "application/octet-stream", pack(header, {
+            "vertices": state.vertices.astype(np.float32), "strain": state.vertex_strain.astype(np.float32)}))

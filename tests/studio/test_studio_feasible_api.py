@@ -46,3 +46,22 @@ def test_fit_template_grows_clamps_and_leaves_polylines(tmp_path):
     for bad in ({"changed": 3}, {"previous": "x"}, {"previous": True}):
         status, answer = call(studio, "/api/fit-template", {"job": job, **bad})
         assert status == 400 and answer["error"].startswith("request:")
+
+
+def test_fold_answers_the_part_way_state_on_the_model_vertices(tmp_path):
+    from foldfab.studio.api import unpack as unpack_answer
+
+    studio = Studio(tmp_path)
+    design = studio.handle("POST", "/api/design", json.dumps({"job": NEW_JOB}).encode())
+    folded = unpack_answer(design.body)[1]["model_vertices"]
+    for t, flat in ((0, True), (0.5, False), (1, False)):
+        response = studio.handle("POST", "/api/fold", json.dumps({"job": NEW_JOB, "t": t}).encode())
+        header, arrays = unpack_answer(response.body)
+        assert response.status == 200 and arrays["vertices"].shape == folded.shape
+        centred = arrays["vertices"] - arrays["vertices"].mean(axis=0)
+        assert (np.linalg.svd(centred, compute_uv=False)[-1] < 1e-3) == flat
+        assert (header["max_strain"] > 0.01) == (t == 0.5)
+    np.testing.assert_allclose(arrays["vertices"], folded, atol=1e-4)
+    for bad in (-0.1, 1.5, "1", True):
+        status, answer = call(studio, "/api/fold", {"job": NEW_JOB, "t": bad})
+        assert status == 400 and answer["error"].startswith("request:")

@@ -213,3 +213,34 @@ def test_export_names_follow_the_jobs_name(page):
     page.fill("#job-name", "other")
     page.select_option("#export-kind", ".svg")
     assert page.input_value("#export-path") == "out/mine.svg"
+
+
+def set_fold(page, percent: int) -> None:
+    page.fill("#fold", str(percent))    # a range input: fill sets it and fires input
+    page.wait_for_function("t => document.body.dataset.fold === String(t)", arg=percent / 100 if percent < 100 else 1)
+
+
+def shown_positions(page) -> np.ndarray:
+    return np.array(page.evaluate("Array.from(window.studio.model.position.array)")).reshape(-1, 3)
+
+
+def test_the_fold_slider_goes_from_a_flat_sheet_to_the_folded_model(page):
+    folded = np.array(page.evaluate("Array.from(window.studio.shown.modelVertices)")).reshape(-1, 3)
+    sheet = np.array(page.evaluate("Array.from(window.studio.shown.cpVertices)")).reshape(-1, 2)
+    set_fold(page, 0)
+    flat = shown_positions(page)
+    centred = flat - flat.mean(axis=0)
+    assert np.linalg.svd(centred, compute_uv=False)[-1] < 1e-3, "at 0% every vertex lies in one plane"
+    pick = np.random.default_rng(1).choice(len(sheet), 12, replace=False)
+    for i in pick:                                   # and the sheet is the crease pattern, unstretched
+        np.testing.assert_allclose(np.linalg.norm(flat[pick] - flat[i], axis=1),
+                                   np.linalg.norm(sheet[pick] - sheet[i], axis=1), atol=1e-3)
+    x0, y0, x1, y1 = page.evaluate("window.studio.model.screenBox()")
+    assert -1 < x0 and x1 < 1 and -1 < y0 and y1 < 1, "the flat sheet is fitted too"
+    set_fold(page, 50)
+    assert "strain up to" in page.inner_text("#model-info")
+    colours = np.array(page.evaluate("Array.from(window.studio.model.surface.getAttribute('color').array)"))
+    assert colours.reshape(-1, 3)[:, 1].min() < 0.9, "strained faces are reddened"
+    set_fold(page, 100)
+    np.testing.assert_allclose(shown_positions(page), folded, atol=1e-4)
+    assert page.evaluate("window.studio.model.surface.getAttribute('color')") is None

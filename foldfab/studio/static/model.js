@@ -4,6 +4,7 @@
 import * as THREE from "three";
 import { OrbitControls } from "./vendor/OrbitControls.js";
 import { hintHeight } from "./view2d.js";
+import { FoldSlider } from "./fold.js";
 
 const FRONT = 0xf1e4c3, BACK = 0x8fb3de, HIT = 0xe53935;
 const LINES = { V: 0x1e63d6, M: 0xe53935, B: 0x24292f };
@@ -61,6 +62,7 @@ export class ModelView {
     this.showCreases.addEventListener("change", () => { this.shownDesign = null; this.render(); });
     section.querySelector(".fit").addEventListener("click", () => { this.auto = true; this.fit(); });
     this.canvas.addEventListener("wheel", () => { this.auto = false; }, { passive: true });
+    this.fold = new FoldSlider(this);
     this.canvas.addEventListener("pointerdown", (e) => { if (e.button === 2 || e.shiftKey) this.auto = false; });
   }
 
@@ -146,6 +148,7 @@ export class ModelView {
     if (shown && shown !== this.shownDesign) {
       this.build(shown);
       this.shownDesign = shown;
+      if (this.fold.vertices()) this.fold.apply();   // the slider's state, until the new design's arrives
       if (!this.fitted) this.fit(); else if (this.auto) this.fit(true);
     }
     this.buildRejected(this.studio.error && this.studio.error.penetrating);
@@ -153,7 +156,7 @@ export class ModelView {
     if (shown) {
       const s = shown.summary;
       this.info.textContent = `${s.faces} faces · ${s.vertices} vertices · ${s.corners} corners · ` +
-        `${s.closed ? "closed" : "open"} · penetrations ${s.penetrations}`;
+        `${s.closed ? "closed" : "open"} · penetrations ${s.penetrations}${this.foldInfo || ""}`;
     }
     this.draw();
   }
@@ -170,6 +173,8 @@ export class ModelView {
     const position = new THREE.BufferAttribute(shown.modelVertices, 3);
     const surface = new THREE.BufferGeometry();
     surface.setAttribute("position", position);
+    this.position = position;
+    this.surface = surface;
     surface.setIndex(new THREE.BufferAttribute(shown.triangles, 1));
     this.objects.add(new THREE.Mesh(surface, this.materials.front));
     const back = new THREE.Mesh(surface, this.materials.back);

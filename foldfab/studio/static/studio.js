@@ -8,24 +8,15 @@ import { TrajectoryView } from "./trajectory.js";
 import { CreaseView } from "./creases.js";
 import { ModelView } from "./model.js";
 import { exportPath } from "./names.js";
+import { unpack } from "./pack.js";
 
 const TOKEN = document.querySelector('meta[name="foldfab-token"]').content;
 const $ = (selector) => document.querySelector(selector);
-const TYPES = { f4: Float32Array, f8: Float64Array, u4: Uint32Array, u1: Uint8Array };
 const HISTORY = 200;
 
 /** The binary design answer: magic, header length, JSON header, 8-byte aligned arrays. */
 export function decode(buffer) {
-  const magic = new TextDecoder().decode(new Uint8Array(buffer, 0, 4));
-  if (magic !== "FFS1") throw new Error("not a studio design");
-  const length = new DataView(buffer).getUint32(4, true);
-  const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 8, length)));
-  const base = 8 + length;
-  const a = {};
-  for (const [name, m] of Object.entries(header.arrays)) {
-    const count = m.shape.reduce((x, y) => x * y, 1);
-    a[name] = new TYPES[m.dtype](buffer, base + m.offset, count);
-  }
+  const { header, arrays: a } = unpack(buffer);
   const rows = (flat, width) => Array.from({ length: flat.length / width }, (_, i) => Array.from(flat.subarray(i * width, i * width + width)));
   const v = a.cp_vertices;
   const box = [Infinity, Infinity, -Infinity, -Infinity];
