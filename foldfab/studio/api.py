@@ -210,7 +210,8 @@ class Studio:
                 ("POST", "/api/open"): self.open, ("POST", "/api/files"): self.files,
                 ("POST", "/api/save"): self.save, ("POST", "/api/export"): self.export,
                 ("POST", "/api/preview"): self.preview, ("POST", "/api/queue"): self.queue,
-                ("POST", "/api/fit-template"): self.fit_template, ("POST", "/api/fold"): self.fold}
+                ("POST", "/api/fit-template"): self.fit_template, ("POST", "/api/fold"): self.fold,
+                ("POST", "/api/generate-profile"): self.generate_profile}
 
     def handle(self, method: str, path: str, body: bytes = b"") -> Response:
         """Answer one API request; user mistakes are 4xx JSON, never an exception."""
@@ -534,3 +535,21 @@ class Studio:
                   "seq": _field(request, "seq", int, 0)}
         return Response(200, "application/octet-stream", pack(header, {
             "vertices": state.vertices.astype(np.float32), "strain": state.vertex_strain.astype(np.float32)}))
+
+    def generate_profile(self, request: dict) -> dict:
+        """New profile points from a generator (:func:`~foldfab.geometry.profiles.generate`), clamped to where
+        the request's trajectory leaves them room; the job's other tables are only read."""
+        from foldfab.design import profile_points, trajectory_points
+        from foldfab.geometry.feasible import Feasible
+        from foldfab.geometry.profiles import MAX_POINTS, generate
+
+        job = self._job(request)
+        offset = np.array(job.profile.offset)
+        number = (int, float)
+        points = generate(_field(request, "kind", str), Feasible.of(trajectory_points(job)), offset,
+                          profile_points(job) - offset, amplitude=_field(request, "amplitude", number, 5.0),
+                          period=_field(request, "period", number, 20.0),
+                          count=_number(request, "points", 41, 2, MAX_POINTS),
+                          height=_field(request, "height", number, None),
+                          passes=_number(request, "passes", 3, 1, 1000))
+        return {"points": points.round(6).tolist()}

@@ -65,3 +65,19 @@ def test_fold_answers_the_part_way_state_on_the_model_vertices(tmp_path):
     for bad in (-0.1, 1.5, "1", True):
         status, answer = call(studio, "/api/fold", {"job": NEW_JOB, "t": bad})
         assert status == 400 and answer["error"].startswith("request:")
+
+
+def test_generate_profile_clamps_to_the_band_and_refuses_bad_requests(tmp_path):
+    studio = Studio(tmp_path)
+    job = {**NEW_JOB, "trajectory": {"template": "regular", "corners": 8, "radius": 40.0}}
+    status, answer = call(studio, "/api/generate-profile", {"job": job, "kind": "sine", "amplitude": 20,
+                                                            "period": 10, "points": 81})
+    points = np.array(answer["points"])
+    assert status == 200 and len(points) == 81 and points[:, 0].max() <= 6.3405
+    status, design = call(studio, "/api/design", {"job": {**job, "profile": {"points": answer["points"],
+                                                                             "offset": [0, 0]}}})
+    assert status == 200
+    for bad, message in (({"kind": "zigzag"}, "unknown kind"), ({"kind": "sine", "points": 1}, "'points' must be"),
+                         ({"kind": "sine", "period": -1}, "period must be"), ({"kind": 3}, "request:")):
+        status, answer = call(studio, "/api/generate-profile", {"job": job, **bad})
+        assert status == 400 and message in answer["error"]

@@ -244,3 +244,26 @@ def test_the_fold_slider_goes_from_a_flat_sheet_to_the_folded_model(page):
     set_fold(page, 100)
     np.testing.assert_allclose(shown_positions(page), folded, atol=1e-4)
     assert page.evaluate("window.studio.model.surface.getAttribute('color')") is None
+
+
+def test_profile_generators_make_valid_designs(page):
+    job = {**NEW_JOB, "trajectory": {"template": "regular", "corners": 8, "radius": 40.0},
+           "profile": {"points": [[0.0, 0.0], [3.0, 10.0], [0.0, 20.0]], "offset": [0.0, 0.0]}}
+    assert load_job(page, job) == "ok"
+    page.click("#view-profile details.tools summary")
+    page.select_option("#gen-kind", "sine")
+    page.fill("#gen-amplitude", "20")          # far wider than the octagon allows (u <= 6.34)
+    page.fill("#gen-period", "10")
+    page.fill("#gen-points", "61")
+    before = renders(page)
+    page.click("#gen-make")
+    assert wait_render(page, before) == "ok"
+    points = np.array(page.evaluate("window.studio.job.profile.points"))
+    assert len(points) == 61 and points[:, 1].max() == pytest.approx(20.0)
+    assert 6.2 < points[:, 0].max() <= 6.3405 and -6.3405 <= points[:, 0].min() < -6.2
+    for kind in ("spline", "smooth", "arc"):
+        page.select_option("#gen-kind", kind)
+        before = renders(page)
+        page.click("#gen-make")
+        assert wait_render(page, before) == "ok", kind
+    assert page.evaluate("window.studio.history.length") >= 5   # each generated profile is an undoable edit

@@ -3,6 +3,7 @@
 
 import { along, bounds, editorView, errorPoint, fmt, hintHeight, markError, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
+import { ProfileTools } from "./generators.js";
 
 export const BAND_FILL = "rgba(46, 164, 78, 0.13)", BAND_EDGE = "#2da44e";
 
@@ -13,6 +14,7 @@ export class ProfileView {
     this.selected = -1;
     this.view = editorView(this, section, studio);
     section.querySelector(".fit").addEventListener("click", () => { this.view.auto = true; this.fit(); });
+    this.tools = new ProfileTools(this);
     this.hint = section.querySelector(".hint");
     this.errorBox = section.querySelector(".error");
     this.table = new PointTable(section.querySelector("#profile-points"), ["u", "v"], {
