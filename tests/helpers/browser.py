@@ -19,17 +19,31 @@ TIMEOUT_MS = 20_000
 
 
 @contextlib.contextmanager
-def chromium():
-    """A headless Chromium (fails, never skips, when Chromium or Playwright is missing)."""
+def playwright_started():
+    """Playwright's sync API (fails, never skips, when Chromium or Playwright is missing)."""
     if not CHROMIUM.is_file():
-        pytest.fail(f"Chromium not found at {CHROMIUM}: install it (Debian: apt-get install -y chromium)",
-                    pytrace=False)
+        pytest.fail(f"Chromium not found at {CHROMIUM}: install it (Debian: apt-get install -y chromium); "
+                    "the studio's browser tests need it and do not skip", pytrace=False)
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:
-        pytest.fail("Playwright is not installed: pip install playwright", pytrace=False)
+        pytest.fail("Playwright is not installed: pip install playwright (its own browser download is not "
+                    "needed: the tests use /usr/bin/chromium)", pytrace=False)
     with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, timeout=TIMEOUT_MS)
+        yield playwright
+
+
+def launch(playwright, extra_args: tuple[str, ...] = ()):
+    """Debian's Chromium, headless, with WebGL by SwiftShader."""
+    return playwright.chromium.launch(executable_path=str(CHROMIUM), args=[*CHROMIUM_ARGS, *extra_args],
+                                      timeout=TIMEOUT_MS)
+
+
+@contextlib.contextmanager
+def chromium():
+    """A headless Chromium for the block."""
+    with playwright_started() as playwright:
+        browser = launch(playwright)
         try:
             yield browser
         finally:

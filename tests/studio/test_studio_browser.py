@@ -20,33 +20,20 @@ from foldfab.job import job_data, load_job
 from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
 from helpers import JOB_FOLDER
+from helpers.browser import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS, launch, playwright_started, renders, studio_page, wait_render
 from helpers.http import serving
-
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 "--enable-unsafe-swiftshader"]
-TIMEOUT_MS = 20_000
 
 
 @pytest.fixture(scope="module")
 def playwright():
     """Playwright, once per module (its sync API runs one instance per thread)."""
-    if not CHROMIUM.is_file():
-        pytest.fail(f"Chromium not found at {CHROMIUM}: install it (Debian: apt-get install -y chromium); "
-                    "the studio's browser tests need it and do not skip", pytrace=False)
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        pytest.fail("Playwright is not installed: pip install playwright (its own browser download is not "
-                    "needed: the tests use /usr/bin/chromium)", pytrace=False)
-    with sync_playwright() as playwright:
+    with playwright_started() as playwright:
         yield playwright
 
 
 @pytest.fixture(scope="module")
 def browser(playwright):
-    chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, timeout=TIMEOUT_MS)
+    chromium = launch(playwright)
     try:
         yield chromium
     finally:
@@ -67,29 +54,8 @@ def server(folder):
 
 @pytest.fixture
 def page(browser, server):
-    context = browser.new_context(viewport={"width": 1400, "height": 900})
-    page = context.new_page()
-    page.set_default_timeout(TIMEOUT_MS)
-    errors: list[str] = []
-    page.on("pageerror", lambda error: errors.append(str(error)))
-    page.goto(server.url)
-    wait_render(page, 0)
-    try:
+    with studio_page(browser, server.url) as page:
         yield page
-        assert not errors, f"JavaScript errors: {errors}"
-    finally:
-        context.close()
-
-
-def renders(page) -> int:
-    return int(page.evaluate("document.body.dataset.renderCount"))
-
-
-def wait_render(page, before: int) -> str:
-    """Wait until a response newer than ``before`` renders and no edit is pending; the status."""
-    page.wait_for_function("n => Number(document.body.dataset.renderCount) > n && document.body.dataset.status !== 'busy'"
-                           " && !window.studio.inflight", arg=before, timeout=TIMEOUT_MS)
-    return page.evaluate("document.body.dataset.status")
 
 
 def shown(page) -> dict:
