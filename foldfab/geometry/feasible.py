@@ -58,9 +58,9 @@ class Feasible:
         lower = np.where(self.cu > 0, bound, -np.inf).max(axis=1, initial=-np.inf)
         return lower, upper
 
-    def clamp(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    def clamp(self, points: np.ndarray, margin: float | np.ndarray = 0.0) -> np.ndarray:
         """``points`` (J, 2) with each u moved into the region at its height (v kept), so that every
-        segment of its line element is at least ``margin`` mm long."""
+        segment of its line element is at least ``margin`` mm long (one value, or one per segment)."""
         points = np.array(points, dtype=float).reshape(-1, 2)
         lower, upper = Feasible(self.c0 - margin, self.cu, self.cv).u_range(points[:, 1])
         if np.any(lower > upper):

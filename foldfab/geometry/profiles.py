@@ -74,11 +74,13 @@ def smooth(points: np.ndarray, passes: int) -> np.ndarray:
 
 
 def generate(kind: str, region: Feasible, offset: np.ndarray, current: np.ndarray, amplitude: float = 5.0,
-             period: float = 20.0, count: int = 41, height: float | None = None, passes: int = 3) -> np.ndarray:
+             period: float = 20.0, count: int = 41, height: float | None = None, passes: int = 3,
+             glue_tab: float = 0.0) -> np.ndarray:
     """A new profile of ``kind`` (:data:`KINDS`) for a design whose trajectory has ``region`` and whose
     profile is shifted by ``offset``: sine and arc from their amplitude, period, point count and height
     (default: the ``current`` profile's), spline through the current points, or the current points
-    smoothed.  Clamped into the region; points that rise by no height are dropped."""
+    smoothed.  Clamped into the region, the first segment of every line element at least ``glue_tab``
+    long (the tab lies on it); points that rise by no height are dropped."""
     current = np.asarray(current, dtype=float).reshape(-1, 2)
     if kind not in KINDS:
         raise DesignError(f"profile generator: unknown kind {kind!r}; expected one of {', '.join(KINDS)}")
@@ -102,7 +104,9 @@ def generate(kind: str, region: Feasible, offset: np.ndarray, current: np.ndarra
         points = smooth(current, int(np.clip(passes, 1, 1000)))
     if kind in ("sine", "arc") and len(current):
         points = points + [0.0, current[:, 1].min()]   # start where the current profile starts
-    points = region.clamp(points + offset, MIN_SEGMENT) - offset
+    margin = np.full(len(region.c0), MIN_SEGMENT)
+    margin[0] = max(MIN_SEGMENT, glue_tab)
+    points = region.clamp(points + offset, margin) - offset
     rise = np.concatenate([[True], np.diff(points[:, 1]) > 1e-6 * max(1.0, height)])
     points = points[rise] if kind in ("sine", "arc") else points[_distinct(points)]
     if len(points) < 2:

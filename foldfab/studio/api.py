@@ -539,17 +539,14 @@ class Studio:
     def generate_profile(self, request: dict) -> dict:
         """New profile points from a generator (:func:`~foldfab.geometry.profiles.generate`), clamped to where
         the request's trajectory leaves them room; the job's other tables are only read."""
-        from foldfab.design import profile_points, trajectory_points
-        from foldfab.geometry.feasible import Feasible
-        from foldfab.geometry.profiles import MAX_POINTS, generate
+        from foldfab.design import generated_profile
+        from foldfab.geometry.profiles import MAX_POINTS
 
-        job = self._job(request)
-        offset = np.array(job.profile.offset)
         number = (int, float)
-        points = generate(_field(request, "kind", str), Feasible.of(trajectory_points(job)), offset,
-                          profile_points(job) - offset, amplitude=_field(request, "amplitude", number, 5.0),
-                          period=_field(request, "period", number, 20.0),
-                          count=_number(request, "points", 41, 2, MAX_POINTS),
-                          height=_field(request, "height", number, None),
-                          passes=_number(request, "passes", 3, 1, 1000))
+        points = generated_profile(self._job(request), _field(request, "kind", str),
+                                   amplitude=_field(request, "amplitude", number, 5.0),
+                                   period=_field(request, "period", number, 20.0),
+                                   count=_number(request, "points", 41, 2, MAX_POINTS),
+                                   height=_field(request, "height", number, None),
+                                   passes=_number(request, "passes", 3, 1, 1000))
         return {"points": points.round(6).tolist()}

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from foldfab.design import build_design, trajectory_points
+from foldfab.design import build_design, generated_profile, trajectory_points
 from foldfab.errors import DesignError
 from foldfab.geometry.feasible import Feasible
 from foldfab.geometry.profiles import KINDS, arc, generate, sine, smooth, spline
@@ -17,9 +17,9 @@ from foldfab.job import job_from_data, toml_text
 CURRENT = np.array([[0.0, 0.0], [8.0, 10.0], [0.0, 20.0], [8.0, 30.0], [0.0, 40.0]])
 
 
-def _job(trajectory: dict, points, offset) -> dict:
+def _job(trajectory: dict, points, offset, tab: float = 0.0) -> dict:
     return {"design": {"name": "generated"}, "profile": {"points": points, "offset": offset},
-            "trajectory": trajectory, "crease": {"flat_angle": 1.0, "glue_tab": 0.0}}
+            "trajectory": trajectory, "crease": {"flat_angle": 1.0, "glue_tab": tab}}
 
 
 trajectories = st.one_of(
@@ -33,16 +33,17 @@ trajectories = st.one_of(
 
 @settings(max_examples=80, deadline=None)
 @given(trajectories, st.sampled_from(KINDS), st.floats(-80, 80), st.floats(1, 100), st.integers(2, 120),
-       st.floats(5, 200), st.floats(-15, 15))
-def test_every_generated_profile_passes_the_design_checks(trajectory, kind, amplitude, period, count, height, shift):
+       st.floats(5, 200), st.floats(-15, 15), st.sampled_from([0.0, 5.0]))
+def test_every_generated_profile_passes_the_design_checks(trajectory, kind, amplitude, period, count, height, shift,
+                                                          tab):
     offset = [shift, 0.0]
-    job = job_from_data(_job(trajectory, CURRENT.tolist(), offset), Path("generated.toml"))
-    region = Feasible.of(trajectory_points(job))
-    points = generate(kind, region, np.array(offset), CURRENT, amplitude, period, count, height)
+    tab = 0.0 if trajectory["template"] == "polyline" else tab      # open: no glue tab
+    job = job_from_data(_job(trajectory, CURRENT.tolist(), offset, tab), Path("generated.toml"))
+    points = generated_profile(job, kind, amplitude=amplitude, period=period, count=count, height=height)
     assert np.all(np.isfinite(points)) and len(points) >= 2
     if kind in ("sine", "arc"):
         assert np.all(np.diff(points[:, 1]) > 0)
-    data = _job(trajectory, points.tolist(), offset)
+    data = _job(trajectory, points.tolist(), offset, tab)
     build_design(job_from_data(data, Path("generated.toml"), toml_text(data)))   # no error, no penetration
 
 
