@@ -6,8 +6,9 @@ fold angle.  At ``t = 1`` this is the folded model exactly and at ``t = 0`` a fl
 a column's creases generally cannot all turn by the same fraction at once (the paper would have to
 stretch), so the faces reached along different paths of the tree disagree where they meet.  Each
 vertex is placed at the mean of its faces' placements, and the *strain* of a face is the largest
-relative change, against the crease pattern, of its sides and diagonal: what Origami Simulator
-shows in colour as the strain of its bars.
+change, against the crease pattern, of the length of its sides and diagonal, relative to its
+longest one (so a sliver face does not read as torn): what Origami Simulator shows in colour as
+the strain of its bars.
 """
 
 from __future__ import annotations
@@ -103,9 +104,8 @@ def fold_state(cp: CreasePattern, t: float) -> FoldState:
     a, b = cp.faces[:, pairs[:, 0]], cp.faces[:, pairs[:, 1]]
     sheet = np.linalg.norm(flat[a] - flat[b], axis=2)
     now = np.linalg.norm(vertices[a] - vertices[b], axis=2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        relative = np.where(sheet > 0, np.abs(now - sheet) / sheet, 0.0)
-    face_strain = relative.max(axis=1)
+    size = sheet.max(axis=1)
+    face_strain = np.where(size > 0, np.abs(now - sheet).max(axis=1) / np.where(size > 0, size, 1.0), 0.0)
     vertex_strain = np.zeros(len(flat))
     np.maximum.at(vertex_strain, cp.faces.ravel(), np.repeat(face_strain, 4))
     return FoldState(t, vertices, face_strain, vertex_strain)

@@ -17,7 +17,10 @@ def _pattern(n: int, radius: float, wave: float, rows: int, tab: float):
     trajectory = templates.regular(2 * n, radius)
     heights = np.linspace(0.0, 10.0 * rows, rows + 1)
     profile = np.column_stack([wave * (np.arange(rows + 1) % 2), heights])
-    return build_crease_pattern(reflect(Feasible.of(trajectory).clamp(profile), trajectory), glue_tab=tab)
+    region = Feasible.of(trajectory)
+    margin = np.full(len(region.c0), 0.01)
+    margin[0] += tab                                  # the glue tab lies on the first segment
+    return build_crease_pattern(reflect(region.clamp(profile, margin), trajectory), glue_tab=tab)
 
 
 patterns = st.builds(_pattern, st.integers(2, 8), st.floats(20, 120), st.floats(-6, 6), st.integers(1, 6),

@@ -44,6 +44,7 @@ export class ProfileTools {
     this.studio.editableProfile();
     this.studio.job.profile.points = r.json.points;
     this.view.selected = -1;
+    this.view.view.fitted = false;   // show the whole new profile
     this.studio.edit();
     this.studio.commit();
     this.view.render();
