@@ -61,8 +61,8 @@ export class FoldSlider {
     this.apply();
   }
 
-  /** Show the state on the model's geometry (or the folded model at 100%). */
-  apply() {
+  /** Show the state on the model's geometry (or the folded model at 100%); ``show``: draw it now. */
+  apply(show = true) {
     const m = this.model, shown = this.studio.shown;
     if (!m.position || !shown) return;
     const vertices = this.vertices();
@@ -88,7 +88,8 @@ export class FoldSlider {
     m.objects.traverse((o) => { if (o.geometry) o.geometry.computeBoundingSphere(); });
     const info = vertices ? ` · fold ${Math.round(100 * this.state.t)}%, strain up to ${(100 * this.state.maxStrain).toFixed(1)}%` : "";
     m.foldInfo = info;
-    if (m.auto) m.fit(true);
+    if (!show) return;
+    if (m.auto) m.fit(true, false);
     m.render();
     document.body.dataset.fold = vertices ? String(this.state.t) : "1";
   }

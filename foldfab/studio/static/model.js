@@ -42,7 +42,7 @@ export class ModelView {
     this.light.target.position.set(0, 0, -1);
     this.scene.add(this.camera);
     this.controls = new OrbitControls(this.camera, this.canvas);
-    this.controls.addEventListener("change", () => this.draw());
+    this.controls.addEventListener("change", () => { if (!this.silent) this.draw(); });
     this.objects = new THREE.Group();
     this.scene.add(this.objects);
     this.materials = {
@@ -83,9 +83,10 @@ export class ModelView {
   /**
    * Frame the model so that every vertex is inside the panel with a margin, in both directions:
    * the camera distance is the least at which each vertex projects inside the frustum.
-   * ``keep``: look from the current direction (after the user turned the model), else the default.
+   * ``keep``: look from the current direction (after the user turned the model), else the default;
+   * ``draw``: draw now (a caller that draws next anyway passes false: one frame, not two).
    */
-  fit(keep = false) {
+  fit(keep = false, draw = true) {
     const v = this.vertices();
     if (!v || !v.length) return;
     const direction = keep && this.fitted
@@ -125,9 +126,11 @@ export class ModelView {
     this.camera.far = distance * 100;
     this.camera.updateProjectionMatrix();
     this.controls.target.copy(centre);
+    this.silent = !draw;   // the controls' change event draws unless told not to
     this.controls.update();
+    this.silent = false;
     this.fitted = true;
-    this.draw();
+    if (draw) this.draw();
   }
 
   /** The projected extent of the shown vertices, [x0, y0, x1, y1] in normalized device coordinates (for tests). */
@@ -148,8 +151,8 @@ export class ModelView {
     if (shown && shown !== this.shownDesign) {
       this.build(shown);
       this.shownDesign = shown;
-      if (this.fold.vertices()) this.fold.apply();   // the slider's state, until the new design's arrives
-      if (!this.fitted) this.fit(); else if (this.auto) this.fit(true);
+      if (this.fold.vertices()) this.fold.apply(false);   // the slider's state, until the new design's arrives
+      if (!this.fitted) this.fit(false, false); else if (this.auto) this.fit(true, false);
     }
     this.buildRejected(this.studio.error && this.studio.error.penetrating);
     this.section.querySelector(".stale").hidden = !(this.studio.error && shown);
