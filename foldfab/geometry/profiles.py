@@ -106,7 +106,14 @@ def generate(kind: str, region: Feasible, offset: np.ndarray, current: np.ndarra
         points = points + [0.0, current[:, 1].min()]   # start where the current profile starts
     margin = np.full(len(region.c0), MIN_SEGMENT)
     margin[0] = max(MIN_SEGMENT, glue_tab)
-    points = region.clamp(points + offset, margin) - offset
+    try:
+        points = region.clamp(points + offset, margin) - offset
+    except DesignError:
+        if glue_tab <= MIN_SEGMENT:
+            raise
+        region.clamp(points + offset, MIN_SEGMENT)   # room without the tab: the tab is what does not fit
+        raise DesignError(f"[crease].glue_tab: {glue_tab:g} mm is longer than the first segment of the line "
+                          "elements can be anywhere on this trajectory; reduce glue_tab") from None
     rise = np.concatenate([[True], np.diff(points[:, 1]) > 1e-6 * max(1.0, height)])
     points = points[rise] if kind in ("sine", "arc") else points[_distinct(points)]
     if len(points) < 2:

@@ -344,9 +344,10 @@ class Studio:
         from foldfab.design import profile_points, trajectory_points
 
         try:
-            extra["polylines"] = {"profile": (profile_points(job) - np.array(job.profile.offset)).tolist(),
-                                  "trajectory": trajectory_points(job).tolist()}
-            extra["feasible"] = feasible_band(profile_points(job), trajectory_points(job))
+            profile, trajectory = profile_points(job), trajectory_points(job)
+            extra["polylines"] = {"profile": (profile - np.array(job.profile.offset)).tolist(),
+                                  "trajectory": trajectory.tolist()}
+            extra["feasible"] = feasible_band(profile, trajectory)
         except FoldfabError:
             pass
         return ApiError(message, cause=error_cause(message.removeprefix(f"{job.path}: ")), **extra)

@@ -39,7 +39,13 @@ def test_every_generated_profile_passes_the_design_checks(trajectory, kind, ampl
     offset = [shift, 0.0]
     tab = 0.0 if trajectory["template"] == "polyline" else tab      # open: no glue tab
     job = job_from_data(_job(trajectory, CURRENT.tolist(), offset, tab), Path("generated.toml"))
-    points = generated_profile(job, kind, amplitude=amplitude, period=period, count=count, height=height)
+    try:
+        points = generated_profile(job, kind, amplitude=amplitude, period=period, count=count, height=height)
+    except DesignError as error:     # a tab longer than the trajectory's first segment can ever be: said so
+        assert tab > 0 and "[crease].glue_tab" in str(error)
+        untabbed = job_from_data(_job(trajectory, CURRENT.tolist(), offset), Path("generated.toml"))
+        assert len(generated_profile(untabbed, kind, amplitude=amplitude, period=period, count=count, height=height))
+        return
     assert np.all(np.isfinite(points)) and len(points) >= 2
     if kind in ("sine", "arc"):
         assert np.all(np.diff(points[:, 1]) > 0)
@@ -69,3 +75,9 @@ def test_a_wave_too_wide_for_its_trajectory_is_clamped_to_the_limit():
         generate("zigzag", region, np.zeros(2), CURRENT)
     with pytest.raises(DesignError, match="period must be"):
         generate("sine", region, np.zeros(2), CURRENT, period=0)
+
+
+def test_a_glue_tab_no_profile_leaves_room_for_is_named():
+    data = _job({"template": "regular", "corners": 20, "radius": 15.0}, CURRENT.tolist(), [0, 0], 5.0)
+    with pytest.raises(DesignError, match=r"\[crease\].glue_tab: 5 mm is longer"):
+        generated_profile(job_from_data(data, Path("g.toml")), "sine", amplitude=0, period=1, count=2, height=5)
