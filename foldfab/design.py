@@ -149,6 +149,21 @@ def summary(design: Design) -> dict:
     }
 
 
+def generated_profile(job: Job, kind: str, **params) -> np.ndarray:
+    """New profile points (J, 2), without the offset, from a generator of
+    :mod:`foldfab.geometry.profiles` (``params``: amplitude, period, count, height, passes), clamped to
+    where ``job``'s trajectory leaves them room: the studio's profile tools and ``foldfab profile``."""
+    from foldfab.geometry.feasible import Feasible
+    from foldfab.geometry.profiles import generate
+
+    offset = np.array(job.profile.offset)
+    try:
+        return generate(kind, Feasible.of(trajectory_points(job)), offset, profile_points(job) - offset,
+                        glue_tab=job.crease.glue_tab, **params)
+    except DesignError as exc:
+        raise DesignError(f"{job.path}: {exc}") from None
+
+
 def load_design(path, **kwargs) -> Design:
     """Read a job file and build its design."""
     from foldfab.job import load_job
@@ -156,5 +171,5 @@ def load_design(path, **kwargs) -> Design:
     return build_design(load_job(path), **kwargs)
 
 
-__all__ = ["Design", "build_design", "load_design", "summary", "profile_points", "trajectory_points",
+__all__ = ["Design", "build_design", "load_design", "summary", "profile_points", "trajectory_points", "generated_profile",
            "penetration_message", "FoldfabError"]

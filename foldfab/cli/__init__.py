@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from foldfab.cli import design, devices, plot, printing, queue, sim, studio
+from foldfab.cli import design, devices, plot, printing, profile, queue, sim, studio
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     devices.add_commands(sub)
     plot.add_commands(sub)
     printing.add_commands(sub)
+    profile.add_commands(sub)
     queue.add_commands(sub)
     sim.add_commands(sub)
     studio.add_commands(sub)

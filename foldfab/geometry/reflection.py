@@ -78,7 +78,7 @@ def _reflect(v: np.ndarray, n: np.ndarray) -> np.ndarray:
     return v - 2.0 * np.dot(v, n) * n
 
 
-def _check_polyline(points: np.ndarray, what: str, tol: float) -> None:
+def check_polyline(points: np.ndarray, what: str, tol: float) -> None:
     if len(points) < 2:
         raise DesignError(f"{what}: needs at least 2 points, got {len(points)}")
     if not np.all(np.isfinite(points)):
@@ -104,23 +104,54 @@ def _simplify_trajectory(points: np.ndarray) -> tuple[np.ndarray, list[int]]:
     return points[keep], index.tolist()
 
 
-def reflect(profile: np.ndarray, trajectory: np.ndarray) -> Reflection:
-    """Build the line-element grid for ``profile`` (J, 2) and ``trajectory`` (N, 2|3).
+@dataclass(frozen=True)
+class Planes:
+    """The planes of a trajectory and, per plane, the coefficients of the crossing formula.
 
-    Raises :class:`DesignError` for an invalid design: too few or repeated
-    points, an odd number of corners on a closed trajectory, a closed 3D
-    trajectory that does not close, or a negative segment length.
+    Line element (u, v) crosses plane ``k`` at ``x = sigma[k] - u·coef_u[k] - v·coef_v[k]``, so
+    its segment ``k`` is ``c0[k] + cu[k]·u + cv[k]·v`` long (:meth:`limits`): one linear rule per
+    segment, the rule :func:`reflect` checks and the studio shades (:mod:`foldfab.geometry.feasible`).
     """
-    profile = np.asarray(profile, dtype=float)
+
+    trajectory: np.ndarray    # (K+1, 3) without straight corners
+    closed: bool
+    corner_seam: bool
+    directions: np.ndarray    # (K, 3)
+    normals: np.ndarray       # (K+1, 3)
+    frames_r: np.ndarray      # (K, 3)
+    frames_h: np.ndarray      # (K, 3)
+    sigma: np.ndarray         # (K+1,) arc length of the trajectory at each plane
+    coef_u: np.ndarray        # (K+1,)
+    coef_v: np.ndarray        # (K+1,)
+    labels: tuple[str, ...]
+
+    def limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(c0, cu, cv), each (K,): segment k of line element (u, v) is c0 + cu·u + cv·v long."""
+        return np.diff(self.sigma), -np.diff(self.coef_u), -np.diff(self.coef_v)
+
+    def turns(self) -> np.ndarray:
+        """Degrees the path turns at each plane (0 at a start or end plane)."""
+        d = self.directions
+        ends = d[[-1, 0]] if self.corner_seam else np.zeros((2, 3))
+        chords = np.linalg.norm(np.vstack([ends[1] - ends[0], d[1:] - d[:-1], ends[1] - ends[0]]), axis=1)
+        return np.degrees(2 * np.arcsin(np.minimum(chords / 2, 1.0)))
+
+
+def length_tolerance(*polylines: np.ndarray) -> float:
+    """The absolute tolerance (mm) below which a length counts as zero, for polylines of this size."""
+    return REL_TOL * max([float(np.ptp(p, axis=0).max(initial=0.0)) for p in polylines if p.size] + [1.0])
+
+
+def as_3d(trajectory) -> np.ndarray:
+    """A trajectory (N, 2|3) as float (N, 3) points (z = 0 for a planar one)."""
     trajectory = np.asarray(trajectory, dtype=float)
     if trajectory.ndim == 2 and trajectory.shape[1] == 2:
         trajectory = np.column_stack([trajectory, np.zeros(len(trajectory))])
-    scale = max(float(np.ptp(trajectory, axis=0).max(initial=0.0)) if trajectory.size else 0.0,
-                float(np.ptp(profile, axis=0).max(initial=0.0)) if profile.size else 0.0, 1.0)
-    tol = REL_TOL * scale
-    _check_polyline(profile, "profile", tol)
-    _check_polyline(trajectory, "trajectory", tol)
+    return trajectory
 
+
+def planes(trajectory: np.ndarray, tol: float) -> Planes:
+    """The planes of a checked (N, 3) ``trajectory`` (see :func:`reflect`); ``tol`` from :func:`length_tolerance`."""
     closed = bool(np.linalg.norm(trajectory[-1] - trajectory[0]) <= tol)  # an SVG path's relative moves miss by 1e-15
     if closed:
         trajectory = np.concatenate([trajectory[:-1], trajectory[:1]])
@@ -166,17 +197,32 @@ def reflect(profile: np.ndarray, trajectory: np.ndarray) -> Reflection:
     nd = np.einsum("ij,ij->i", normals, d[f])
     coef_u = np.einsum("ij,ij->i", normals, frames_r[f]) / nd
     coef_v = np.einsum("ij,ij->i", normals, frames_h[f]) / nd
+    return Planes(traj, closed, bool(corner_seam), d, normals, frames_r, frames_h, sigma, coef_u, coef_v, labels)
+
+
+def reflect(profile: np.ndarray, trajectory: np.ndarray) -> Reflection:
+    """Build the line-element grid for ``profile`` (J, 2) and ``trajectory`` (N, 2|3).
+
+    Raises :class:`DesignError` for an invalid design: too few or repeated
+    points, an odd number of corners on a closed trajectory, a closed 3D
+    trajectory that does not close, or a negative segment length.
+    """
+    profile = np.asarray(profile, dtype=float)
+    trajectory = as_3d(trajectory)
+    tol = length_tolerance(trajectory, profile)
+    check_polyline(profile, "profile", tol)
+    check_polyline(trajectory, "trajectory", tol)
+    p = planes(trajectory, tol)
+    traj, d, sigma, K = p.trajectory, p.directions, p.sigma, len(p.directions)
+    f = np.minimum(np.arange(K + 1), K - 1)
     u, v = profile[:, 0], profile[:, 1]
-    x = sigma[None, :] - np.multiply.outer(u, coef_u) - np.multiply.outer(v, coef_v)
+    x = sigma[None, :] - np.multiply.outer(u, p.coef_u) - np.multiply.outer(v, p.coef_v)
 
     seglen = np.diff(x, axis=1)
     negative = seglen < -tol
     if np.any(negative):
         j, k = map(int, np.argwhere(negative)[0])
-        ends = d[[-1, 0]] if corner_seam else np.zeros((2, 3))
-        chords = np.linalg.norm(np.vstack([ends[1] - ends[0], d[1:] - d[:-1], ends[1] - ends[0]]), axis=1)
-        turns = np.degrees(2 * np.arcsin(np.minimum(chords / 2, 1.0)))  # of the path at each plane
-        raise DesignError(_negative_message(j, k, profile, sigma, coef_u, coef_v, seglen[j, k], labels, turns))
+        raise DesignError(_negative_message(j, k, profile, p, seglen[j, k]))
     zero = np.abs(seglen) <= tol
     if np.any(zero):
         # Snap zero-length segments exactly, so their end points coincide.
@@ -184,9 +230,9 @@ def reflect(profile: np.ndarray, trajectory: np.ndarray) -> Reflection:
 
     offset = x - sigma[None, :]
     points = (traj[None, :, :] + offset[:, :, None] * d[f][None]
-              + u[:, None, None] * frames_r[f][None] + v[:, None, None] * frames_h[f][None])
+              + u[:, None, None] * p.frames_r[f][None] + v[:, None, None] * p.frames_h[f][None])
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(profile, axis=0), axis=1))])
-    return Reflection(profile, arc, traj, closed, bool(corner_seam), normals, x, points, labels, tol)
+    return Reflection(profile, arc, traj, p.closed, p.corner_seam, p.normals, x, points, p.labels, tol)
 
 
 def _plane_labels(traj: np.ndarray, original: list[int], closed: bool, corner_seam: bool) -> tuple[str, ...]:
@@ -224,11 +270,10 @@ SHALLOW_TURN = 5.0
 that an error it causes says so (the point may belong on a straight line)."""
 
 
-def _negative_message(j, k, profile, sigma, coef_u, coef_v, length, labels, turns) -> str:
+def _negative_message(j: int, k: int, profile: np.ndarray, p: Planes, length: float) -> str:
     u, v = profile[j]
-    c0 = sigma[k + 1] - sigma[k]
-    cu = -(coef_u[k + 1] - coef_u[k])
-    cv = -(coef_v[k + 1] - coef_v[k])
+    c0, cu, cv = (a[k] for a in p.limits())
+    labels, turns = p.labels, p.turns()
     if abs(cu) > 1e-12:
         limit = -(c0 + cv * v) / cu
         advice = (f"reduce u of profile point {j} (or [profile].offset[0]) to at most {limit:.4g} mm" if cu < 0 else

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 import re
-import struct
 import threading
 import traceback
 from dataclasses import dataclass, field
@@ -33,6 +32,7 @@ from typing import Any, Callable
 import numpy as np
 
 from foldfab.errors import FoldfabError
+from foldfab.studio.wire import ApiError, Response, field_of, number_of, pack
 
 MAX_BODY = 16 * 2**20
 STUDIO_MAX_FACES = 200_000
@@ -40,7 +40,6 @@ STUDIO_MAX_FACES = 200_000
 a larger design is built with ``foldfab design``, up to :data:`foldfab.limits.MAX_FACES`)."""
 STUDIO_LIMIT_ADVICE = (f"the studio builds at most {STUDIO_MAX_FACES:,} faces: use fewer points, or build "
                        "the saved job with 'foldfab design' or 'foldfab export' (their limit is higher)")
-MAGIC = b"FFS1"
 EDGE_GROUPS = ("F", "V", "M", "B")  # drawn in this order: outline on top
 VIEWS = {"design": "file", "profile": "profile", "trajectory": "trajectory", "crease": "creases",
          "fabrication": "creases"}
@@ -68,54 +67,6 @@ def refusal_comment(reason: str | None) -> str:
         return ""
     clean = re.sub(r"[\x00-\x08\x0a-\x1f\x7f]", " ", reason)
     return f"# saved by foldfab studio although 'foldfab design' refuses it:\n# {clean}\n\n"
-
-
-class ApiError(Exception):
-    """A request the studio refuses: HTTP ``status`` with ``message`` and extra JSON fields."""
-
-    def __init__(self, message: str, status: int = 400, **extra: Any):
-        super().__init__(message)
-        self.status = status
-        self.extra = extra
-
-
-@dataclass(frozen=True)
-class Response:
-    """What the server sends back."""
-
-    status: int
-    content_type: str
-    body: bytes
-
-    @classmethod
-    def json(cls, data: dict, status: int = 200) -> Response:
-        return cls(status, "application/json", json.dumps(data, allow_nan=False).encode())
-
-
-def pack(header: dict, arrays: dict[str, np.ndarray]) -> bytes:
-    """``MAGIC``, header length (u32), JSON header (``arrays``: dtype, shape, offset), 8-byte aligned arrays."""
-    meta, chunks, offset = {}, [], 0
-    for name, array in arrays.items():
-        array = np.ascontiguousarray(array, dtype=array.dtype.newbyteorder("<"))
-        data = array.tobytes()
-        meta[name] = {"dtype": array.dtype.str[1:], "shape": list(array.shape), "offset": offset}
-        chunks.append(data + b"\0" * (-len(data) % 8))
-        offset += len(data) + (-len(data) % 8)
-    head = json.dumps({**header, "arrays": meta}, allow_nan=False).encode()
-    head += b" " * (-(len(head) + 8) % 8)
-    return MAGIC + struct.pack("<I", len(head)) + head + b"".join(chunks)
-
-
-def unpack(data: bytes) -> tuple[dict, dict[str, np.ndarray]]:
-    """The header and arrays of :func:`pack` (for tests and tools)."""
-    if data[:4] != MAGIC:
-        raise ValueError("not a studio design")
-    (length,) = struct.unpack("<I", data[4:8])
-    header = json.loads(data[8:8 + length])
-    start = 8 + length
-    arrays = {name: np.frombuffer(data, np.dtype("<" + m["dtype"]), int(np.prod(m["shape"])), start + m["offset"])
-              .reshape(m["shape"]) for name, m in header["arrays"].items()}
-    return header, arrays
 
 
 def error_cause(message: str) -> dict[str, Any]:
@@ -151,37 +102,18 @@ def error_cause(message: str) -> dict[str, Any]:
     return {"view": "file"}
 
 
-# --- request fields -------------------------------------------------------------------------
+def feasible_band(profile: np.ndarray, trajectory: np.ndarray) -> list[list[float]] | None:
+    """The region where profile points (offset included) may go, as a polygon reaching far beyond the
+    design (:class:`~foldfab.geometry.feasible.Feasible`), or None when the trajectory has none."""
+    from foldfab.geometry.feasible import Feasible
 
-_REQUIRED = object()
-
-
-def _field(body: dict, key: str, kind: type | tuple[type, ...], default: Any = _REQUIRED) -> Any:
-    if key not in body:
-        if default is _REQUIRED:
-            raise ApiError(f"request: missing field {key!r}")
-        return default
-    value = body[key]
-    if isinstance(value, bool) and bool not in (kind if isinstance(kind, tuple) else (kind,)):
-        raise ApiError(f"request: {key!r} must be {_kind_name(kind)}, got a boolean")
-    if not isinstance(value, kind):
-        raise ApiError(f"request: {key!r} must be {_kind_name(kind)}, got {type(value).__name__}")
-    if isinstance(value, str) and len(value) > 4096:
-        raise ApiError(f"request: {key!r} is longer than 4096 characters")
-    return value
-
-
-def _kind_name(kind) -> str:
-    kinds = kind if isinstance(kind, tuple) else (kind,)
-    return " or ".join({dict: "an object", str: "a string", bool: "true or false", int: "a whole number",
-                        float: "a number", list: "a list"}[k] for k in kinds)
-
-
-def _number(body: dict, key: str, default: int, low: int, high: int) -> int:
-    value = _field(body, key, int, default)
-    if not low <= value <= high:
-        raise ApiError(f"request: {key!r} must be from {low} to {high}, got {value}")
-    return value
+    try:
+        region = Feasible.of(trajectory)
+    except FoldfabError:
+        return None
+    size = max(float(np.ptp(profile, axis=0).max()), float(np.ptp(trajectory, axis=0).max()), 1.0)
+    (u, v), reach = profile.mean(axis=0), 20 * size
+    return region.polygon((u - reach, v - reach, u + reach, v + reach)).round(6).tolist()
 
 
 @dataclass
@@ -212,7 +144,9 @@ class Studio:
                 ("POST", "/api/save"): self.save, ("POST", "/api/export"): self.export,
                 ("POST", "/api/preview"): self.preview, ("POST", "/api/queue"): self.queue,
                 ("POST", "/api/device"): self.device_settings, ("POST", "/api/fabrication"): self.fabrication,
-                ("POST", "/api/print"): self.print_template}
+                ("POST", "/api/print"): self.print_template,
+                ("POST", "/api/fit-template"): self.fit_template, ("POST", "/api/fold"): self.fold,
+                ("POST", "/api/generate-profile"): self.generate_profile}
 
     def handle(self, method: str, path: str, body: bytes = b"") -> Response:
         """Answer one API request; user mistakes are 4xx JSON, never an exception."""
@@ -255,7 +189,7 @@ class Studio:
 
     def _job_path(self, request: dict) -> Path:
         """The job file the design belongs to (where its relative SVG paths start)."""
-        text = _field(request, "path", str, "")
+        text = field_of(request, "path", str, "")
         if not text:
             return self.start_dir / "untitled.toml"
         path = Path(text).expanduser()
@@ -283,14 +217,14 @@ class Studio:
 
     def _target(self, request: dict, suffixes: tuple[str, ...] | None) -> Path:
         """Where to write; call it holding ``_write_lock`` so that the exists check and the write are one step."""
-        target = self.user_path(_field(request, "target", str))
+        target = self.user_path(field_of(request, "target", str))
         if suffixes and target.suffix.lower() not in suffixes:
             raise ApiError(f"{target}: expected a file name ending in {', '.join(suffixes)}", cause={"view": "file"})
         if not target.parent.is_dir():
             raise ApiError(f"{target}: folder {target.parent} does not exist; create it first", cause={"view": "file"})
         if target.is_dir():
             raise ApiError(f"{target}: is a folder; type a file name", cause={"view": "file"})
-        if target.exists() and not _field(request, "overwrite", bool, False):
+        if target.exists() and not field_of(request, "overwrite", bool, False):
             raise ApiError(f"{target} exists; replace it?", 409, exists=True, target=str(target))
         return target
 
@@ -304,7 +238,7 @@ class Studio:
         """
         from foldfab.job import job_from_data, toml_text
 
-        data = _field(request, "job", dict)
+        data = field_of(request, "job", dict)
         return _checked(job_from_data(data, self._job_path(request), toml_text(data)))
 
     def _device(self, name: str):
@@ -321,7 +255,7 @@ class Studio:
         """The request's design; penetration is an error unless ``allow_penetration``."""
         from foldfab.design import build_design
 
-        allow = _field(request, "allow_penetration", bool, False)
+        allow = field_of(request, "allow_penetration", bool, False)
         job = self._job(request)
         try:
             design = build_design(job, allow_penetration=True, max_faces=min(job.max_faces or STUDIO_MAX_FACES,
@@ -345,8 +279,10 @@ class Studio:
         from foldfab.design import profile_points, trajectory_points
 
         try:
-            extra["polylines"] = {"profile": (profile_points(job) - np.array(job.profile.offset)).tolist(),
-                                  "trajectory": trajectory_points(job).tolist()}
+            profile, trajectory = profile_points(job), trajectory_points(job)
+            extra["polylines"] = {"profile": (profile - np.array(job.profile.offset)).tolist(),
+                                  "trajectory": trajectory.tolist()}
+            extra["feasible"] = feasible_band(profile, trajectory)
         except FoldfabError:
             pass
         return ApiError(message, cause=error_cause(message.removeprefix(f"{job.path}: ")), **extra)
@@ -404,7 +340,7 @@ class Studio:
         from foldfab.design import summary, trajectory_points
 
         start = time.perf_counter()
-        device, seq = _field(request, "device", str, ""), _field(request, "seq", int, 0)
+        device, seq = field_of(request, "device", str, ""), field_of(request, "seq", int, 0)
         design = self._build(request)
         built = time.perf_counter()
         fit = self._fit(design, device)
@@ -427,6 +363,7 @@ class Studio:
             "penetrating": cp.faces[np.unique(design.penetrations)].astype(np.uint32),
         }
         header = {"summary": summary(design), "fit": fit, "closed": grid.closed,
+                  "feasible": feasible_band(grid.profile, grid.trajectory),
                   "corner_seam": grid.corner_seam,
                   "edge_groups": {k: [s, c] for k, s, c in zip(EDGE_GROUPS, starts, counts)},
                   "seq": seq}
@@ -438,7 +375,7 @@ class Studio:
         """Read a job file: its tables for the views."""
         from foldfab.job import job_data, load_job
 
-        path = self.user_path(_field(request, "target", str))
+        path = self.user_path(field_of(request, "target", str))
         job = _checked(load_job(path))
         return {"job": job_data(job), "path": str(path), "display": self.display(path)}
 
@@ -465,7 +402,7 @@ class Studio:
             if STUDIO_LIMIT_ADVICE in str(exc):
                 return self._write_job(request, job, None)
             refused = str(exc).removeprefix(f"{job.path}: ")
-            if not _field(request, "anyway", bool, False):
+            if not field_of(request, "anyway", bool, False):
                 raise ApiError(f"not saved: 'foldfab design' refuses this job: {refused}", refused=refused,
                                cause=exc.extra.get("cause", {"view": "file"})) from None
         return self._write_job(request, job, refused)
@@ -502,7 +439,7 @@ class Studio:
         load each new sheet (as ``foldfab plot`` makes it)."""
         from foldfab.fabricate import fabricate_sheets
 
-        device_name = _field(request, "device", str, "")
+        device_name = field_of(request, "device", str, "")
         design = self._build(request)
         device = self._device(device_name)
         return design, device, fabricate_sheets(design, device, one_program=True)[0]
@@ -523,14 +460,14 @@ class Studio:
         """The fabrication panel's fields for a device: defaults, ranges, media presets."""
         from foldfab.studio.fabrication import device_settings
 
-        return device_settings(self._device(_field(request, "device", str, "")))
+        return device_settings(self._device(field_of(request, "device", str, "")))
 
     def fabrication(self, request: dict) -> dict:
         """The fabrication panel: the design on the device's sheets (pieces when split), the estimate."""
         from foldfab.studio.fabrication import fabrication_answer
 
         design = self._build(request)
-        return fabrication_answer(design, self._device(_field(request, "device", str, "")))
+        return fabrication_answer(design, self._device(field_of(request, "device", str, "")))
 
     def print_template(self, request: dict) -> dict:
         """Write the printable template (``foldfab print``): PDF, or SVG pages."""
@@ -538,7 +475,7 @@ class Studio:
         from foldfab.studio.fabrication import print_options, write_print
 
         design = self._build(request)
-        options = print_options(design, _field(request, "paper", str, "A4"))
+        options = print_options(design, field_of(request, "paper", str, "A4"))
         with self._write_lock:
             return write_print(design, self._target(request, SUFFIXES), options)
 
@@ -549,13 +486,13 @@ class Studio:
         from foldfab.queue.location import open_queue
 
         design, device, fab = self._fabricate(request)
-        port = _field(request, "port", str, "") or device.port
+        port = field_of(request, "port", str, "") or device.port
         if not port:
             raise ApiError(f"{device.name} has no port: type one (a serial port such as /dev/ttyUSB0, or "
                            f"sim://{device.name} for a simulated plotter), or set port in {device.source}",
                            cause={"view": "file", "field": "port"})
-        copies = _number(request, "copies", 1, 1, MAX_COPIES)
-        priority = _number(request, "priority", 0, *PRIORITIES)
+        copies = number_of(request, "copies", 1, 1, MAX_COPIES)
+        priority = number_of(request, "priority", 0, *PRIORITIES)
         snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
         store = open_queue()
         try:
@@ -564,3 +501,45 @@ class Studio:
             store.close()
         return {"ids": ids, "queue": str(store.location), "device": device.name, "port": port,
                 "program_bytes": len(fab.program.text)}
+
+    def fit_template(self, request: dict) -> dict:
+        """The request's template with sizes that leave its profile room (:func:`~foldfab.geometry.feasible.fit_template`):
+        ``changed`` is what the user moved (a parameter or "template"), ``previous`` its last value."""
+        from foldfab.design import profile_points
+        from foldfab.geometry.feasible import fit_template
+
+        job = self._job(request)
+        spec = job.trajectory
+        changed = field_of(request, "changed", str, "template")
+        previous = field_of(request, "previous", (int, float), None)
+        params, note = fit_template(spec.template, dict(spec.params), profile_points(job), changed, previous)
+        return {"trajectory": {**request["job"]["trajectory"], **params}, "note": note}
+
+    def fold(self, request: dict) -> Response:
+        """The design part-way folded (``t`` from 0, flat, to 1, folded) with its strain per vertex; binary
+        answer (:func:`pack`) on the model's vertex indices (:func:`~foldfab.geometry.fold.fold_state`)."""
+        from foldfab.geometry.fold import fold_state
+
+        t = field_of(request, "t", (int, float))
+        if not 0 <= t <= 1:
+            raise ApiError(f"request: 't' must be from 0 to 1, got {t}")
+        state = fold_state(self._build(request).crease_pattern, t)
+        header = {"t": t, "max_strain": round(float(state.face_strain.max(initial=0.0)), 6),
+                  "seq": field_of(request, "seq", int, 0)}
+        return Response(200, "application/octet-stream", pack(header, {
+            "vertices": state.vertices.astype(np.float32), "strain": state.vertex_strain.astype(np.float32)}))
+
+    def generate_profile(self, request: dict) -> dict:
+        """New profile points from a generator (:func:`~foldfab.geometry.profiles.generate`), clamped to where
+        the request's trajectory leaves them room; the job's other tables are only read."""
+        from foldfab.design import generated_profile
+        from foldfab.geometry.profiles import MAX_POINTS
+
+        number = (int, float)
+        points = generated_profile(self._job(request), field_of(request, "kind", str),
+                                   amplitude=field_of(request, "amplitude", number, 5.0),
+                                   period=field_of(request, "period", number, 20.0),
+                                   count=number_of(request, "points", 41, 2, MAX_POINTS),
+                                   height=field_of(request, "height", number, None),
+                                   passes=number_of(request, "passes", 3, 1, 1000))
+        return {"points": points.round(6).tolist()}

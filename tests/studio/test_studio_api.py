@@ -16,7 +16,8 @@ import pytest
 
 from foldfab.design import load_design, summary
 from foldfab.job import job_data, load_job
-from foldfab.studio.api import MAX_BODY, Studio, error_cause, pack, unpack
+from foldfab.studio.api import MAX_BODY, Studio, error_cause
+from foldfab.studio.wire import pack, unpack
 from foldfab.studio.server import StudioServer
 from helpers import JOB_FOLDER
 from helpers.http import exchange, raw_request, refusals, responses, serving, smuggled

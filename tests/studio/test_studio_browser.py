@@ -20,29 +20,20 @@ from foldfab.job import job_data, load_job
 from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
 from helpers import JOB_FOLDER
+from helpers.browser import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS, launch, playwright_started, renders, studio_page, wait_render
 from helpers.http import serving
-from helpers.studio import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS, open_studio, renders, wait_render
-
 
 
 @pytest.fixture(scope="module")
 def playwright():
     """Playwright, once per module (its sync API runs one instance per thread)."""
-    if not CHROMIUM.is_file():
-        pytest.fail(f"Chromium not found at {CHROMIUM}: install it (Debian: apt-get install -y chromium); "
-                    "the studio's browser tests need it and do not skip", pytrace=False)
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        pytest.fail("Playwright is not installed: pip install playwright (its own browser download is not "
-                    "needed: the tests use /usr/bin/chromium)", pytrace=False)
-    with sync_playwright() as playwright:
+    with playwright_started() as playwright:
         yield playwright
 
 
 @pytest.fixture(scope="module")
 def browser(playwright):
-    chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, timeout=TIMEOUT_MS)
+    chromium = launch(playwright)
     try:
         yield chromium
     finally:
@@ -63,7 +54,7 @@ def server(folder):
 
 @pytest.fixture
 def page(browser, server):
-    with open_studio(browser, server.url) as page:
+    with studio_page(browser, server.url) as page:
         yield page
 
 
@@ -95,17 +86,15 @@ def test_template_loads_in_all_four_views(page):
     assert first["summary"]["corners"] == 6 and first["summary"]["faces"] == 32
     assert "32 faces" in page.inner_text("#cp-info") and "32 faces" in page.inner_text("#model-info")
     before = renders(page)
-    page.select_option("#template", "star")   # 3 points, radii 40 and 28: the profile reaches too far out
-    assert wait_render(page, before) == "error"
-    assert page.evaluate("document.body.dataset.errorView") == "profile"
-    assert "line element 1" in page.inner_text("#view-profile .error")
+    page.select_option("#template", "star")   # 3 points: a deep star, grown until the profile fits (issue 24)
+    assert wait_render(page, before) == "ok"
     assert page.is_visible("#param-outer_radius") and page.is_visible("#param-inner_radius")
+    star_job = page.evaluate("window.studio.job.trajectory")
+    assert star_job["template"] == "star" and star_job["points"] == 3 and star_job["outer_radius"] >= 40
     before = renders(page)
     set_field(page, "#offset-u", -4)           # the paper's position adjustment
     assert wait_render(page, before) == "ok"
     star = shown(page)
-    assert page.evaluate("window.studio.job.trajectory") == {"template": "star", "points": 3,
-                                                              "outer_radius": 40, "inner_radius": 28}
     assert star["summary"]["corners"] == 6 and star["cp"] != first["cp"]
     assert not page.is_visible("#view-profile .error")
 
@@ -309,10 +298,10 @@ def test_device_fit_dry_run_export_and_queue(page, folder, monkeypatch):
     assert "grbl" in page.inner_text("#preview-info")
     page.click("#preview-close")
     page.select_option("#export-kind", ".cp")
-    assert page.input_value("#export-path") == "hexagon.cp"
+    assert page.input_value("#export-path") == "hexagon-relief-Figure-8-a.cp"   # the job's name
     page.click("#export")
     page.wait_for_function("document.querySelector('#file-message').textContent.startsWith('exported')")
-    assert (folder / "hexagon.cp").read_text().startswith("1 ")
+    assert (folder / "hexagon-relief-Figure-8-a.cp").read_text().startswith("1 ")
     page.fill("#port", "sim://grbl")
     page.click("#queue")
     page.wait_for_function("document.querySelector('#file-message').textContent.startsWith('queued')")
@@ -373,7 +362,7 @@ def test_the_profile_point_an_error_blames_is_ringed_in_red(page):
     page.wait_for_function("window.studio.profile.view.canvas.width > 0")
     page.evaluate("window.studio.profile.view.draw()")
     assert ring_pixels(page, "profile", 2, points) > 32, "a red ring round the point the error names"
-    assert ring_pixels(page, "profile", 0, points) == 0
+    assert ring_pixels(page, "profile", 0, points) < 8   # no ring: at most where the (red) profile line crosses
 
 
 ATTACK = """async ({token, studio, save}) => {

@@ -20,13 +20,13 @@ from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
 from helpers import JOB_FOLDER
 from helpers.http import serving
-from helpers.studio import TIMEOUT_MS, launch, open_studio, pixel, renders, wait_fabrication, wait_render
+from helpers.browser import TIMEOUT_MS, chromium, colour_at, renders, studio_page, wait_fabrication, wait_render
 
 
 @pytest.fixture(scope="module")
 def browser():
-    with launch() as chromium:
-        yield chromium
+    with chromium() as browser:
+        yield browser
 
 
 @pytest.fixture
@@ -38,7 +38,7 @@ def folder(tmp_path):
 @pytest.fixture
 def page(browser, folder):
     with serving(StudioServer(Studio(folder, folder / "hexagon.toml"))) as server, \
-            open_studio(browser, server.url) as page:
+            studio_page(browser, server.url) as page:
         yield page
 
 
@@ -67,7 +67,7 @@ def test_a_fabrication_setting_ends_in_the_saved_toml_and_the_exported_program(p
     (x0, y0), (x1, y1) = sheet["margin_outline"][0], sheet["margin_outline"][2]
     assert abs(abs(x1 - x0) - (297 - 50)) < 1e-6 and abs(abs(y1 - y0) - (210 - 50)) < 1e-6
     # The sheet's outline is drawn (green) on the crease-pattern view at its corner.
-    assert pixel(page, "creases", sheet["outline"][0]) == "green"
+    assert colour_at(page, "creases", sheet["outline"][0]) == "green"
     page.fill("#job-path", "saved.toml")
     page.click("#save")
     page.wait_for_function("document.body.dataset.saved")
@@ -154,7 +154,7 @@ def test_the_stroke_slider_highlights_stroke_k(page):
         page.wait_for_function("k => document.body.dataset.dryrunStep === String(k)", arg=k)
         stroke = page.evaluate(f"window.studio.dryrun.stroke({k})")
         (x0, y0), (x1, y1) = stroke[0], stroke[1] if len(stroke) > 1 else stroke[0]
-        assert pixel(page, "dryrun", [(x0 + x1) / 2, (y0 + y1) / 2]) == "orange", f"stroke {k} is highlighted"
+        assert colour_at(page, "dryrun", [(x0 + x1) / 2, (y0 + y1) / 2]) == "orange", f"stroke {k} is highlighted"
         assert page.inner_text("#dryrun-info").startswith(f"stroke {k + 1} of {count}")
     page.fill("#dryrun-step", "0")
     page.click("#dryrun-play")

@@ -22,7 +22,8 @@ from foldfab.fabricate import fabricate_sheets
 from foldfab.job import job_data, load_job, parse_job
 from foldfab.programs.estimate import estimate
 from foldfab.programs.interpret import interpret
-from foldfab.studio.api import Studio, refusal_comment, unpack
+from foldfab.studio.api import Studio, refusal_comment
+from foldfab.studio.wire import unpack
 from helpers import JOB_FOLDER
 
 

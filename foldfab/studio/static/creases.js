@@ -10,7 +10,7 @@ export class CreaseView {
     this.section = section;
     this.info = section.querySelector("#cp-info");
     this.fitInfo = section.querySelector("#fit-info");
-    this.view = new View2D(section.querySelector("canvas"), { draw: (view, ctx) => this.draw(view, ctx) });
+    this.view = new View2D(section.querySelector("canvas"), { draw: (view, ctx) => this.draw(view, ctx), fit: () => this.fit() });
     section.querySelector(".fit").addEventListener("click", () => { this.view.auto = true; this.fit(); });
   }
 

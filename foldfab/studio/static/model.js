@@ -3,9 +3,12 @@
 
 import * as THREE from "three";
 import { OrbitControls } from "./vendor/OrbitControls.js";
+import { hintHeight } from "./view2d.js";
+import { FoldSlider } from "./fold.js";
 
 const FRONT = 0xf1e4c3, BACK = 0x8fb3de, HIT = 0xe53935;
 const LINES = { V: 0x1e63d6, M: 0xe53935, B: 0x24292f };
+const MARGIN = 0.92;   // the fitted model fills this fraction of the panel's smaller extent
 
 /** WebGL drawn on the CPU (SwiftShader, llvmpipe): multisampling there costs more than the frame itself. */
 function softwareRenderer() {
@@ -39,7 +42,7 @@ export class ModelView {
     this.light.target.position.set(0, 0, -1);
     this.scene.add(this.camera);
     this.controls = new OrbitControls(this.camera, this.canvas);
-    this.controls.addEventListener("change", () => this.draw());
+    this.controls.addEventListener("change", () => { if (!this.silent) this.draw(); });
     this.objects = new THREE.Group();
     this.scene.add(this.objects);
     this.materials = {
@@ -53,10 +56,14 @@ export class ModelView {
       lines: Object.fromEntries(Object.entries(LINES).map(([k, c]) => [k, new THREE.LineBasicMaterial({ color: c })])),
     };
     this.fitted = false;
+    this.auto = true;          // refit on resize and on every new design until the user zooms or pans
     this.shownDesign = null;
     new ResizeObserver(() => this.resize()).observe(this.canvas);
     this.showCreases.addEventListener("change", () => { this.shownDesign = null; this.render(); });
-    section.querySelector(".fit").addEventListener("click", () => this.fit());
+    section.querySelector(".fit").addEventListener("click", () => { this.auto = true; this.fit(); });
+    this.canvas.addEventListener("wheel", () => { this.auto = false; }, { passive: true });
+    this.fold = new FoldSlider(this);
+    this.canvas.addEventListener("pointerdown", (e) => { if (e.button === 2 || e.shiftKey) this.auto = false; });
   }
 
   resize() {
@@ -65,25 +72,77 @@ export class ModelView {
     this.renderer.setSize(r.width, r.height, false);
     this.camera.aspect = r.width / r.height;
     this.camera.updateProjectionMatrix();
-    this.draw();
+    if (this.auto && this.fitted) this.fit(true); else this.draw();
   }
 
-  fit() {
-    const shown = this.studio.shown;
-    if (!shown) return;
-    const v = shown.modelVertices;
-    const box = new THREE.Box3().setFromArray(v);
-    const sphere = box.getBoundingSphere(new THREE.Sphere());
-    const distance = sphere.radius / Math.sin(THREE.MathUtils.degToRad(this.camera.fov / 2)) * 0.95;
-    const direction = new THREE.Vector3(0.6, -0.8, 0.3).normalize();
-    this.camera.position.copy(sphere.center).addScaledVector(direction, distance);
+  /** The vertices the view shows (the fold slider's state when it is not at 100%). */
+  vertices() {
+    return (this.fold && this.fold.vertices()) || (this.studio.shown && this.studio.shown.modelVertices);
+  }
+
+  /**
+   * Frame the model so that every vertex is inside the panel with a margin, in both directions:
+   * the camera distance is the least at which each vertex projects inside the frustum.
+   * ``keep``: look from the current direction (after the user turned the model), else the default;
+   * ``draw``: draw now (a caller that draws next anyway passes false: one frame, not two).
+   */
+  fit(keep = false, draw = true) {
+    const v = this.vertices();
+    if (!v || !v.length) return;
+    const direction = keep && this.fitted
+      ? this.camera.position.clone().sub(this.controls.target).normalize()
+      : new THREE.Vector3(0.6, -0.8, 0.3).normalize();
+    const up = new THREE.Vector3(0, 0, 1);
+    const right = new THREE.Vector3().crossVectors(up, direction);
+    if (right.lengthSq() < 1e-12) right.set(1, 0, 0);
+    right.normalize();
+    const top = new THREE.Vector3().crossVectors(direction, right).normalize();
+    const height = this.canvas.clientHeight || 1;   // the hint line at the bottom is not free room
+    const tanV = Math.tan(THREE.MathUtils.degToRad(this.camera.fov / 2)) * MARGIN * (1 - 2 * hintHeight(this.canvas) / height);
+    const tanH = tanV * this.camera.aspect;
+    const centre = new THREE.Box3().setFromArray(v).getCenter(new THREE.Vector3());
+    let distance = 0;
+    for (let pass = 0; pass < 2; pass++) {   // the second pass centres the projected extent
+      distance = 0;
+      for (let i = 0; i < v.length; i += 3) {
+        const x = v[i] - centre.x, y = v[i + 1] - centre.y, z = v[i + 2] - centre.z;
+        const a = x * right.x + y * right.y + z * right.z, b = x * top.x + y * top.y + z * top.z;
+        const c = x * direction.x + y * direction.y + z * direction.z;
+        distance = Math.max(distance, c + Math.abs(a) / tanH, c + Math.abs(b) / tanV);
+      }
+      if (pass) break;
+      const box = [Infinity, -Infinity, Infinity, -Infinity];
+      for (let i = 0; i < v.length; i += 3) {
+        const x = v[i] - centre.x, y = v[i + 1] - centre.y, z = v[i + 2] - centre.z;
+        const depth = distance - (x * direction.x + y * direction.y + z * direction.z);
+        const a = (x * right.x + y * right.y + z * right.z) / depth, b = (x * top.x + y * top.y + z * top.z) / depth;
+        box[0] = Math.min(box[0], a); box[1] = Math.max(box[1], a); box[2] = Math.min(box[2], b); box[3] = Math.max(box[3], b);
+      }
+      centre.addScaledVector(right, (box[0] + box[1]) / 2 * distance).addScaledVector(top, (box[2] + box[3]) / 2 * distance);
+    }
+    distance = Math.max(distance, 1e-3);
+    this.camera.position.copy(centre).addScaledVector(direction, distance);
     this.camera.near = distance / 100;
     this.camera.far = distance * 100;
     this.camera.updateProjectionMatrix();
-    this.controls.target.copy(sphere.center);
+    this.controls.target.copy(centre);
+    this.silent = !draw;   // the controls' change event draws unless told not to
     this.controls.update();
+    this.silent = false;
     this.fitted = true;
-    this.draw();
+    if (draw) this.draw();
+  }
+
+  /** The projected extent of the shown vertices, [x0, y0, x1, y1] in normalized device coordinates (for tests). */
+  screenBox() {
+    const v = this.vertices(), p = new THREE.Vector3(), box = [Infinity, Infinity, -Infinity, -Infinity];
+    this.camera.updateMatrixWorld();
+    for (let i = 0; i < v.length; i += 3) {
+      p.set(v[i], v[i + 1], v[i + 2]).project(this.camera);
+      box[0] = Math.min(box[0], p.x); box[1] = Math.min(box[1], p.y);
+      box[2] = Math.max(box[2], p.x); box[3] = Math.max(box[3], p.y);
+    }
+    return box;
   }
 
   /** Rebuild the scene when the shown design changed; always redraw. */
@@ -92,14 +151,15 @@ export class ModelView {
     if (shown && shown !== this.shownDesign) {
       this.build(shown);
       this.shownDesign = shown;
-      if (!this.fitted) this.fit();
+      if (this.fold.vertices()) this.fold.apply(false);   // the slider's state, until the new design's arrives
+      if (!this.fitted) this.fit(false, false); else if (this.auto) this.fit(true, false);
     }
     this.buildRejected(this.studio.error && this.studio.error.penetrating);
     this.section.querySelector(".stale").hidden = !(this.studio.error && shown);
     if (shown) {
       const s = shown.summary;
       this.info.textContent = `${s.faces} faces · ${s.vertices} vertices · ${s.corners} corners · ` +
-        `${s.closed ? "closed" : "open"} · penetrations ${s.penetrations}`;
+        `${s.closed ? "closed" : "open"} · penetrations ${s.penetrations}${this.foldInfo || ""}`;
     }
     this.draw();
   }
@@ -116,6 +176,8 @@ export class ModelView {
     const position = new THREE.BufferAttribute(shown.modelVertices, 3);
     const surface = new THREE.BufferGeometry();
     surface.setAttribute("position", position);
+    this.position = position;
+    this.surface = surface;
     surface.setIndex(new THREE.BufferAttribute(shown.triangles, 1));
     this.objects.add(new THREE.Mesh(surface, this.materials.front));
     const back = new THREE.Mesh(surface, this.materials.back);

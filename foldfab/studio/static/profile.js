@@ -1,8 +1,11 @@
 // The profile view: the profile polyline (u right, v up) and the trajectory seen end-on as a dot.
 // Points are the job's [profile].points; the dot sits at -offset, so dragging it sets [profile].offset.
 
-import { along, bounds, editorView, errorPoint, fmt, markError, nearestHandle, nearestSegment } from "./view2d.js";
+import { along, bounds, editorView, errorPoint, fmt, hintHeight, markError, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
+import { ProfileTools } from "./generators.js";
+
+export const BAND_FILL = "rgba(46, 164, 78, 0.13)", BAND_EDGE = "#2da44e";
 
 export class ProfileView {
   constructor(studio, section) {
@@ -10,7 +13,10 @@ export class ProfileView {
     this.section = section;
     this.selected = -1;
     this.view = editorView(this, section, studio);
-    section.querySelector(".fit").addEventListener("click", () => this.fit());
+    section.querySelector(".fit").addEventListener("click", () => { this.view.auto = true; this.fit(); });
+    this.tools = new ProfileTools(this);
+    this.hint = section.querySelector(".hint");
+    this.errorBox = section.querySelector(".error");
     this.table = new PointTable(section.querySelector("#profile-points"), ["u", "v"], {
       change: (i, values) => { this.editable()[i] = values; studio.edit(); this.view.draw(); },
       remove: (i) => this.remove(i),
@@ -95,7 +101,16 @@ export class ProfileView {
     this.render();
   }
 
+  /** Pixels covered at the top (the axis label) and bottom (the hint, and the error box at its
+   * tallest, so that an error never hides the lowest points). */
+  insets() {
+    const error = getComputedStyle(this.errorBox);
+    const errorRoom = parseFloat(error.bottom) + parseFloat(error.maxHeight) + 2 * parseFloat(error.paddingTop) + 2;
+    return { top: 18, bottom: Math.max(hintHeight(this.view.canvas), errorRoom || 0) + 4 };
+  }
+
   fit() {
+    if (!this.studio.job) return;
     const [ou, ov] = this.offset();
     const box = bounds([...this.points(), [-ou, -ov]]);
     if (box) this.view.fit(box, 0.1);
@@ -111,11 +126,33 @@ export class ProfileView {
     return errorPoint(this.studio, "profile");
   }
 
+  /** The region where points may go (the server's polygon, offset included), or null. */
+  band() {
+    const { error, shown } = this.studio;
+    return (error ? error.feasible : shown && shown.feasible) || null;
+  }
+
+  /** Shade the region where points may go: the same rule as the "meets ... before ..." error. */
+  drawBand(view, ctx, [ou, ov]) {
+    const band = this.band();
+    if (!band || band.length < 3) return;
+    view.path(ctx, band.map(([u, v]) => [u - ou, v - ov]), true);
+    ctx.fillStyle = BAND_FILL;
+    ctx.fill();
+    ctx.save();
+    ctx.setLineDash([4, 3]);
+    ctx.strokeStyle = BAND_EDGE;
+    ctx.lineWidth = 1;
+    ctx.stroke();
+    ctx.restore();
+  }
+
   draw(view, ctx) {
     view.drawGrid(ctx);
     if (!this.studio.job) return;
     const points = this.points();
     const [ou, ov] = this.offset();
+    this.drawBand(view, ctx, [ou, ov]);
     const [dx, dy] = view.toScreen(-ou, -ov);
     // The trajectory's level (v = 0) and line (u = 0), then the trajectory itself, end-on.
     ctx.save();
@@ -128,7 +165,11 @@ export class ProfileView {
     ctx.restore();
     ctx.fillStyle = "#57606a";
     ctx.font = "11px system-ui, sans-serif";
-    ctx.fillText("u →  (right of travel)", view.width - 130, view.height - 22);
+    // u's label right-aligned just above the hint line, so the two never overlap
+    const label = "u →  (right of travel)", width = ctx.measureText(label).width;
+    const y = Math.min(view.height, this.hint.offsetTop) - 5;
+    ctx.fillText(label, view.width - width - 8, y);
+    this.uLabel = { x: view.width - width - 8, y: y - 11, w: width, h: 13 };
     ctx.fillText("v ↑", 8, 16);
     if (points.length) {
       ctx.lineWidth = 2;

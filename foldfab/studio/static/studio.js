@@ -9,24 +9,16 @@ import { CreaseView } from "./creases.js";
 import { ModelView } from "./model.js";
 import { FabricationPanel } from "./fabrication.js";
 import { DryRun } from "./dryrun.js";
+import { exportPath } from "./names.js";
+import { unpack } from "./pack.js";
 
 const TOKEN = document.querySelector('meta[name="foldfab-token"]').content;
 const $ = (selector) => document.querySelector(selector);
-const TYPES = { f4: Float32Array, f8: Float64Array, u4: Uint32Array, u1: Uint8Array };
 const HISTORY = 200;
 
 /** The binary design answer: magic, header length, JSON header, 8-byte aligned arrays. */
 export function decode(buffer) {
-  const magic = new TextDecoder().decode(new Uint8Array(buffer, 0, 4));
-  if (magic !== "FFS1") throw new Error("not a studio design");
-  const length = new DataView(buffer).getUint32(4, true);
-  const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 8, length)));
-  const base = 8 + length;
-  const a = {};
-  for (const [name, m] of Object.entries(header.arrays)) {
-    const count = m.shape.reduce((x, y) => x * y, 1);
-    a[name] = new TYPES[m.dtype](buffer, base + m.offset, count);
-  }
+  const { header, arrays: a } = unpack(buffer);
   const rows = (flat, width) => Array.from({ length: flat.length / width }, (_, i) => Array.from(flat.subarray(i * width, i * width + width)));
   const v = a.cp_vertices;
   const box = [Infinity, Infinity, -Infinity, -Infinity];
@@ -40,7 +32,7 @@ export function decode(buffer) {
     profile: rows(a.profile, 2), trajectoryPoints: rows(a.trajectory, 3), planes: a.planes,
     paths: a.paths, pathShape: header.arrays.paths.shape.slice(0, 2),
     cpVertices: v, cpBox: box, modelVertices: a.model_vertices, edges: a.edges, triangles: a.triangles,
-    penetrating: a.penetrating,
+    penetrating: a.penetrating, feasible: header.feasible,
   };
 }
 
@@ -107,6 +99,7 @@ class Studio {
     this.error = null;
     this.current = { profile: null, trajectory: null };
     $("#job-path").value = display;
+    this.exportTyped = false;
     this.setExportPath();
     this.history = [];
     this.at = -1;
@@ -264,7 +257,8 @@ class Studio {
   }
 
   bind() {
-    $("#job-name").addEventListener("input", (e) => { this.job.design.name = e.target.value; this.edit(); });
+    $("#job-name").addEventListener("input", (e) => { this.job.design.name = e.target.value; this.setExportPath(); this.edit(); });
+    $("#export-path").addEventListener("input", () => { this.exportTyped = true; });
     $("#job-name").addEventListener("change", () => this.commit());
     this.bindNumber(["#offset-u", "#offset-v"], () => {
       this.job.profile.offset = [parseFloat($("#offset-u").value) || 0, parseFloat($("#offset-v").value) || 0];
@@ -293,9 +287,11 @@ class Studio {
     });
   }
 
+  /** The export field follows the job's name (and folder) until the user types a path of their own. */
   setExportPath() {
-    const job = $("#job-path").value || "untitled.toml";
-    $("#export-path").value = job.replace(/\.toml$/i, "") + $("#export-kind").value;
+    const kind = $("#export-kind").value, field = $("#export-path");
+    if (this.exportTyped) field.value = field.value.replace(/\.[^./]*$/, "") + kind;
+    else field.value = exportPath($("#job-path").value, this.job && this.job.design.name, kind);
   }
 
   // --- status and errors
@@ -378,6 +374,7 @@ class Studio {
     this.job = r.json.job;
     this.commit();
     $("#job-path").value = r.json.display;
+    this.setExportPath();
     this.message(`saved ${r.json.written}` + (r.json.refused ? " although 'foldfab design' refuses it" : ""));
     document.body.dataset.saved = r.json.written;
     this.syncControls();

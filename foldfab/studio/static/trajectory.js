@@ -3,9 +3,10 @@
 
 import { along, bounds, editorView, errorPoint, markError, nearestHandle, nearestSegment } from "./view2d.js";
 import { PointTable } from "./table.js";
+import { keepValid } from "./keepvalid.js";
 
 const PARAMS = {
-  regular: [["corners", "corners", 3, 40, 1], ["radius", "radius", 5, 300, 0.5]],
+  regular: [["corners", "corners", 4, 40, 2], ["radius", "radius", 5, 300, 0.5]],   // odd corners cannot close
   star: [["points", "points", 2, 20, 1], ["outer_radius", "outer r", 5, 300, 0.5], ["inner_radius", "inner r", 5, 300, 0.5]],
 };
 const MAX_PATHS = 48;
@@ -72,18 +73,20 @@ export class TrajectoryView {
       const label = document.createElement("label");
       label.className = "param";
       label.innerHTML = `${name} <input type="range" min="${low}" max="${high}" step="${step}" data-field="trajectory.${key}">` +
-        `<input type="number" step="${step === 1 ? 1 : "any"}" data-field="trajectory.${key}" id="param-${key}">`;
+        `<input type="number" step="${Number.isInteger(step) ? 1 : "any"}" data-field="trajectory.${key}" id="param-${key}">`;
       const [range, number] = label.querySelectorAll("input");
       range.value = number.value = spec[key];
-      const integer = step === 1;
+      const integer = Number.isInteger(step);
       const set = (source, other) => {
         const value = integer ? Number(source.value) : parseFloat(source.value);
         const ok = Number.isFinite(value) && (!integer || Number.isInteger(value));
         source.classList.toggle("invalid", !ok);
         if (!ok) return;
         other.value = value;
+        const fitted = this.lastFit && this.lastFit.template === spec.template ? this.lastFit : spec;
+        const previous = fitted[key];   // the last value that was known to fit
         spec[key] = value;
-        this.studio.edit();
+        keepValid(this, key, previous);
       };
       range.addEventListener("input", () => set(range, number));
       number.addEventListener("input", () => set(number, range));
@@ -111,7 +114,7 @@ export class TrajectoryView {
     }
     this.selected = -1;
     this.syncControls();
-    this.studio.edit();
+    if (template === "polyline") this.studio.edit(); else keepValid(this, "template");
     this.studio.commit();
     this.render();
   }
@@ -248,14 +251,27 @@ export class TrajectoryView {
     this.render();
   }
 
-  fit() {
+  /** The trajectory and, when shown, the line elements' paths around it (they reach past it). */
+  box() {
     const box = bounds(this.points());
-    if (box) this.view.fit(box, 0.12);
+    const shown = this.studio.shown;
+    if (!box || !shown || this.studio.error) return box;
+    const p = shown.paths;
+    for (let i = 0; i < p.length; i += 3) {
+      box[0] = Math.min(box[0], p[i]); box[2] = Math.max(box[2], p[i]);
+      box[1] = Math.min(box[1], p[i + 1]); box[3] = Math.max(box[3], p[i + 1]);
+    }
+    return box;
+  }
+
+  fit() {
+    const box = this.box();
+    if (box) this.view.fit(box, 0.08);
   }
 
   render() {
     // A template that outgrows the view (or shrinks in it) is refitted; a polyline being edited stays put.
-    const box = bounds(this.points());
+    const box = this.box();
     if (!this.view.fitted) this.fit();
     else if (box && !this.isPolyline()) this.view.keepInView(box);
     this.view.draw();

@@ -10,7 +10,8 @@ export class View2D {
    *          drag?: (target: object, world: number[], event: PointerEvent) => void,
    *          drop?: (target: object) => void,
    *          dblclick?: (world: number[], event: MouseEvent) => void,
-   *          context?: (world: number[], event: MouseEvent) => void}} handlers
+   *          context?: (world: number[], event: MouseEvent) => void,
+   *          fit?: () => void, insets?: () => {top: number, bottom: number}}} handlers
    */
   constructor(canvas, handlers) {
     this.canvas = canvas;
@@ -28,13 +29,14 @@ export class View2D {
     this.bindPointer();
   }
 
+  /** The canvas changed size: a view that follows its content (``auto``) fits it again. */
   resize() {
     const r = this.canvas.getBoundingClientRect();
     this.width = Math.max(1, r.width);
     this.height = Math.max(1, r.height);
     this.canvas.width = Math.round(this.width * DPR());
     this.canvas.height = Math.round(this.height * DPR());
-    this.draw();
+    if (this.auto && this.fitted && this.h.fit) this.h.fit(); else this.draw();
   }
 
   toScreen(x, y) {
@@ -52,12 +54,14 @@ export class View2D {
     return [r.left + sx, r.top + sy];
   }
 
-  /** Show the box [x0, y0, x1, y1] with a margin. */
+  /** Show the box [x0, y0, x1, y1] with a margin, clear of what covers the canvas (``insets``, px). */
   fit(box, margin = 0.12) {
     const w = Math.max(box[2] - box[0], 1e-6), h = Math.max(box[3] - box[1], 1e-6);
-    this.scale = Math.min(this.width * (1 - 2 * margin) / w, this.height * (1 - 2 * margin) / h);
+    const { top, bottom } = this.h.insets ? this.h.insets() : { top: 0, bottom: hintHeight(this.canvas) };
+    const free = Math.max(this.height - top - bottom, 0.3 * this.height);
+    this.scale = Math.min(this.width * (1 - 2 * margin) / w, free * (1 - 2 * margin) / h);
     if (!isFinite(this.scale) || this.scale <= 0) this.scale = 1;
-    this.center = [(box[0] + box[2]) / 2, (box[1] + box[3]) / 2];
+    this.center = [(box[0] + box[2]) / 2, (box[1] + box[3]) / 2 + (top - bottom) / 2 / this.scale];   // mid free part
     this.fitted = true;
     this.draw();
   }
@@ -175,6 +179,12 @@ export class View2D {
   }
 }
 
+/** Pixels the hint line (if any) covers at the bottom of ``canvas``'s wrapper. */
+export function hintHeight(canvas) {
+  const hint = canvas.parentElement && canvas.parentElement.querySelector(".hint");
+  return hint ? Math.max(0, canvas.parentElement.clientHeight - hint.offsetTop) : 0;
+}
+
 export function niceStep(raw) {
   const p = Math.pow(10, Math.floor(Math.log10(raw)));
   for (const m of [1, 2, 5, 10]) if (m * p >= raw) return m * p;
@@ -253,6 +263,8 @@ export function markError(view, ctx, points, index) {
  */
 export function editorView(editor, section, studio, onKey = () => {}) {
   const view = new View2D(section.querySelector("canvas"), {
+    fit: () => editor.fit(),
+    insets: editor.insets ? () => editor.insets() : undefined,
     draw: (view, ctx) => editor.draw(view, ctx),
     hit: (sx, sy, press) => editor.hit(sx, sy, press),
     drag: (target, world) => editor.drag(target, world),
