@@ -247,9 +247,17 @@ class SqlQueueStore:
 
     def snapshot(self, job_id: int) -> Snapshot:
         with self._read() as db:
-            row = db.execute("SELECT s.name, s.job_path, s.job_text, s.device, s.device_text, s.program, "
-                             "s.program_meta, s.program_sha256 FROM jobs j JOIN snapshots s "
-                             "ON s.id = j.snapshot_id WHERE j.id = ?", (_job_id(job_id),)).fetchone()
+            row = self._snapshot_row(db, job_id)
+        return self._checked_snapshot(job_id, row)
+
+    @staticmethod
+    def _snapshot_row(db: Any, job_id: int) -> tuple | None:
+        return db.execute("SELECT s.name, s.job_path, s.job_text, s.device, s.device_text, s.program, "
+                          "s.program_meta, s.program_sha256 FROM jobs j JOIN snapshots s "
+                          "ON s.id = j.snapshot_id WHERE j.id = ?", (_job_id(job_id),)).fetchone()
+
+    def _checked_snapshot(self, job_id: int, row: tuple | None) -> Snapshot:
+        """The snapshot in ``row``; FoldfabError if there is none or its program does not match its hash."""
         if row is None:
             raise self._no_job(job_id)
         *texts, program, meta, digest = row
@@ -357,8 +365,10 @@ class SqlQueueStore:
             what = f"resumed at byte {job.acked_bytes} of {job.program_bytes}" if job.acked_bytes else "started"
             self._event(db, job.id, "started", f"{what} by worker {worker} (attempt {job.attempts + 1})")
             job = self._get(db, job.id)
+            row = self._snapshot_row(db, job.id)  # in the claim's transaction: a server lost after it
+            # commits must not pass for a damaged snapshot (the job failed) nor leave the job held
         try:
-            return Claim(job, self.snapshot(job.id))
+            return Claim(job, self._checked_snapshot(job.id, row))
         except FoldfabError as exc:  # damaged: the worker fails the job (and says so), not itself
             return Claim(job, None, str(exc))
 
