@@ -209,3 +209,35 @@ def test_the_hosts_wait_out_a_server_restart_and_finish_every_job(own_server):
     check_farm(store, 200, run)
     assert "database system is shut down" in own_server.log.read_text()  # it was restarted
     store.close()
+
+
+def test_a_worker_waits_out_a_server_it_cannot_reach_to_claim_or_start_a_job(postgres_store):
+    """A host between jobs when the server restarts: its claim, then its read of the job's log
+    before starting, fail while the server is away; it tries again backing off, and plots."""
+    store = postgres_store
+    store.add([NewJob(snapshot("hp7475a"), "sim://hp7475a?time=instant")])
+    failures = []
+    for name, fails in (("claim", 2), ("events", 1)):
+        def away(*args, _call=getattr(store, name), _name=name, _fails=fails, **kw):
+            if failures.count(_name) < _fails:
+                failures.append(_name)
+                raise QueueBusy("queue server: the database system is shutting down")
+            return _call(*args, **kw)
+        setattr(store, name, away)
+    worker = Worker(store, Quiet(), WorkerOptions(heartbeat=0.05, lease=1.0))
+    assert worker.run().ended == {"done": [1]}
+    assert failures == ["claim", "claim", "events"]
+    assert [e.kind for e in store.events(1)] == ["queued", "started", "done"]
+
+
+def test_a_claim_holds_its_snapshot_when_the_server_goes_away_just_after(postgres_store):
+    """The snapshot is read in the claim's transaction: a server lost once the claim committed
+    cannot make a sound job look damaged (the worker would fail it)."""
+    store = postgres_store
+    store.add([NewJob(snapshot("hp7475a"), "sim://p")])
+
+    def gone():
+        raise QueueBusy("queue server: terminating connection due to administrator command")
+    store._read = gone  # every read after the claim's own transaction
+    claim = store.claim(WorkerId.current(), 30)
+    assert claim.damage is None and claim.snapshot.program.text.startswith("IN;")
