@@ -280,9 +280,9 @@ def main_farm(argv: list[str]) -> None:
             add_jobs(store, args.jobs, rng)
             began = time.perf_counter()
             if seed == "restart":
-                run = run_farm(store.url, rng, restart=server.restart)
+                run = run_farm(store, rng, restart=server.restart)
             else:
-                run = run_farm(store.url, rng, kill=True)
+                run = run_farm(store, rng, kill=True)
             elapsed = time.perf_counter() - began
             check_farm(store, args.jobs, run)
             resumed = [j.id for j in store.jobs() if j.attempts > 1]

@@ -109,22 +109,24 @@ class FarmRun:
     restarted_after: int | None = None
 
 
-def run_farm(url: str, rng: random.Random, kill: bool = False, restart=None) -> FarmRun:
-    """Start the three hosts on the queue at ``url`` and wait until each has run out of jobs.
-    ``kill``: SIGKILL a random host after a random line of its output, then start it again;
-    ``restart``: a function that restarts the server, called after a random line of host a."""
-    hosts = {name: Host(url, name) for name in FARM}
+def run_farm(store, rng: random.Random, kill: bool = False, restart=None) -> FarmRun:
+    """Start the three hosts on ``store``'s queue and wait until each has run out of jobs.
+    ``kill``: SIGKILL a random host after a random line of its output (any moment of its run),
+    then start it again; ``restart``: a function that restarts the server, called likewise after
+    a random line of host a's output."""
+    jobs = {name: sum(job.port == port for job in store.jobs()) for name, port in ports().items()}
+    hosts = {name: Host(store.url, name) for name in FARM}
     run = FarmRun({name: {host.process.pid} for name, host in hosts.items()})
     if restart is not None:
-        run.restarted_after = rng.randint(1, 8 * LINES_PER_JOB)
+        run.restarted_after = rng.randint(1, LINES_PER_JOB * max(jobs["a"], 1))
         hosts["a"].wait_lines(run.restarted_after)
         restart()
     if kill:
         victim = rng.choice(sorted(FARM))
-        run.killed = (victim, rng.randint(1, 6 * LINES_PER_JOB))
+        run.killed = (victim, rng.randint(1, LINES_PER_JOB * max(jobs[victim], 1)))
         hosts[victim].wait_lines(run.killed[1])
         hosts[victim].kill()
-        hosts[victim] = Host(url, victim)  # the host comes back
+        hosts[victim] = Host(store.url, victim)  # the host comes back
         run.pids[victim].add(hosts[victim].process.pid)
     for name, host in hosts.items():
         code = host.end()

@@ -74,7 +74,7 @@ def test_three_hosts_share_one_queue_of_200_jobs(postgres_store):
     """Every job done exactly once, by the host of its plotter, on a plotter of its profile, none lost."""
     rng = random.Random(23)
     assert len(add_jobs(postgres_store, 200, rng)) == 200
-    check_farm(postgres_store, 200, run_farm(postgres_store.url, rng))
+    check_farm(postgres_store, 200, run_farm(postgres_store, rng))
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -84,7 +84,7 @@ def test_a_host_killed_at_a_random_moment_comes_back_and_resumes_its_job(postgre
     its interrupted job resumes on the same plotter; nothing lost, nothing done twice."""
     rng = random.Random(seed)
     add_jobs(postgres_store, SUITE_KILL_JOBS, rng)
-    run = run_farm(postgres_store.url, rng, kill=True)
+    run = run_farm(postgres_store, rng, kill=True)
     assert run.killed is not None and len(run.pids[run.killed[0]]) == 2
     check_farm(postgres_store, SUITE_KILL_JOBS, run)
 
@@ -204,7 +204,7 @@ def test_the_hosts_wait_out_a_server_restart_and_finish_every_job(own_server):
     store = PostgresQueueStore(own_server.new_database())
     rng = random.Random(5)
     add_jobs(store, 200, rng)
-    run = run_farm(store.url, rng, restart=own_server.restart)
+    run = run_farm(store, rng, restart=own_server.restart)
     assert run.restarted_after is not None
     check_farm(store, 200, run)
     assert "database system is shut down" in own_server.log.read_text()  # it was restarted
