@@ -365,8 +365,9 @@ class SqlQueueStore:
             what = f"resumed at byte {job.acked_bytes} of {job.program_bytes}" if job.acked_bytes else "started"
             self._event(db, job.id, "started", f"{what} by worker {worker} (attempt {job.attempts + 1})")
             job = self._get(db, job.id)
-            row = self._snapshot_row(db, job.id)  # in the claim's transaction: a server lost after it
-            # commits must not pass for a damaged snapshot (the job failed) nor leave the job held
+            # the snapshot in the claim's own transaction: a server lost once it commits must not
+            # pass for a damaged snapshot (the worker would fail the job) nor leave the job held
+            row = self._snapshot_row(db, job.id)
         try:
             return Claim(job, self._checked_snapshot(job.id, row))
         except FoldfabError as exc:  # damaged: the worker fails the job (and says so), not itself

@@ -139,7 +139,8 @@ def check_farm(store, count: int, run: FarmRun) -> None:
     lost; a job interrupted only on the killed host's plotter, and then resumed there."""
     jobs = store.jobs()
     assert len(jobs) == count
-    assert [job.state for job in jobs] == ["done"] * count, [(j.id, j.state, j.reason) for j in jobs if j.state != "done"]
+    assert [job.state for job in jobs] == ["done"] * count, [(j.id, j.state, j.reason) for j in jobs
+                                                             if j.state != "done"]
     where = {port: name for name, port in ports().items()}
     interrupted = []
     for job in jobs:
@@ -148,7 +149,8 @@ def check_farm(store, count: int, run: FarmRun) -> None:
         name = where[job.port]
         assert job.device == FARM[name] and job.drawn_mm == job.drawn_total_mm > 0  # every stroke drawn
         assert kinds.count("done") == 1 and kinds[-1] == "done"
-        workers = [int(re.search(r"by worker [^/ ]+/(\d+)/", e.message).group(1)) for e in events if e.kind == "started"]
+        workers = [int(re.search(r"by worker [^/ ]+/(\d+)/", e.message).group(1))
+                   for e in events if e.kind == "started"]
         assert workers and set(workers) <= run.pids[name], (job.id, workers, run.pids)
         if kinds == ["queued", "started", "done"]:
             assert job.acked_bytes == job.program_bytes

@@ -88,7 +88,8 @@ def test_queue_list_shows_a_page_and_the_command_for_the_next(store, capsys):
     out = run_cli(capsys, "queue", "list", "--state", "queued", "--limit", "20", "--after", "100", *queue)[1]
     assert out.splitlines()[-1] == ("... 10 more queued jobs: foldfab queue list --after 120 --state queued "
                                     "--limit 20 (--limit 0 lists all)")
-    assert run_cli(capsys, "queue", "list", "--after", "130", *queue)[1] == f"no jobs after job 130 in {store.location}\n"
+    out = run_cli(capsys, "queue", "list", "--after", "130", *queue)[1]
+    assert out == f"no jobs after job 130 in {store.location}\n"
     for args, message in ((["--limit", "-1"], "argument --limit: expected a number of jobs of 0 or more, got -1"),
                           (["--after", "x"], "argument --after: expected a whole number, got 'x'")):
         with pytest.raises(SystemExit) as exit:
