@@ -335,7 +335,7 @@ def add_commands(sub) -> None:
     listing.add_argument("--json", action="store_true", help="print JSON")
     listing.add_argument("--after", type=_int_from(0, MAX_JOB_ID, "expected a job id"), default=0, metavar="ID",
                          help="only jobs with higher ids (the next page starts after the last job shown)")
-    listing.add_argument("--limit", type=_int_from(0, None, "expected a number of jobs"), metavar="N",
+    listing.add_argument("--limit", type=_int_from(0, MAX_JOB_ID, "expected a number of jobs"), metavar="N",
                          help=f"show at most N jobs, 0 for all (default {LIST_LIMIT}; --json: all)")
     listing.set_defaults(func=cmd_queue_list)
 

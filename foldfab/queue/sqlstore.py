@@ -226,7 +226,7 @@ class SqlQueueStore:
             return JobPage([], 0)
         with self._read() as db:
             where = "WHERE j.id > :after" + (f" AND {self.queries.effective_state} = :state" if state else "")
-            params = self._params(db, state=state, after=max(_job_id(after), 0), limit=limit)
+            params = self._params(db, state=state, after=min(max(after, 0), MAX_JOB_ID), limit=limit)
             # the primary key serves ORDER BY j.id with LIMIT: a page reads its own rows, not the queue
             rows = db.execute(f"{self.queries.select_jobs} {where} ORDER BY j.id"
                               + (" LIMIT :limit" if limit is not None else ""), params).fetchall()

@@ -67,6 +67,7 @@ def test_pages_hold_every_job_exactly_once_while_the_queue_changes(store):
     assert len(seen) == len(set(seen)) and seen[-1] == new
     assert set(seen) == set(ids) | {new}  # the removed job was listed before it went
     assert store.page(None, new, 5).jobs == [] and store.page(None, new, 5).more == 0
+    assert store.page(None, 2 ** 70, 5).jobs == [] and store.page(None, -5, 1).jobs[0].id == seen[0]
     with pytest.raises(ValueError):
         store.page(None, 0, 0)
 
@@ -90,7 +91,10 @@ def test_queue_list_shows_a_page_and_the_command_for_the_next(store, capsys):
                                     "--limit 20 (--limit 0 lists all)")
     out = run_cli(capsys, "queue", "list", "--after", "130", *queue)[1]
     assert out == f"no jobs after job 130 in {store.location}\n"
-    for args, message in ((["--limit", "-1"], "argument --limit: expected a number of jobs of 0 or more, got -1"),
+    for args, message in ((["--limit", "-1"], "argument --limit: expected a number of jobs from 0 to "),
+                          (["--limit", str(2 ** 64)], f"argument --limit: expected a number of jobs from 0 to "
+                                                      f"{2 ** 63 - 1}, got {2 ** 64}"),
+                          (["--after", str(2 ** 64)], "argument --after: expected a job id from 0 to "),
                           (["--after", "x"], "argument --after: expected a whole number, got 'x'")):
         with pytest.raises(SystemExit) as exit:
             run_cli(capsys, "queue", "list", *args, *queue)
