@@ -233,6 +233,10 @@ def main_list(argv: list[str]) -> None:
         print(f"queue list of {args.jobs} jobs (7 in 10 done, 2 queued); wall time, median (best) of {REPEAT}; "
               "the store call alone: median of 20")
         print(f"{'queue':<12}{'what':<52}{'median s':>10}{'best s':>9}")
+        for what, command in (("python -c 'import vpype' (the yardstick)", [sys.executable, "-c", "import vpype"]),
+                              ("foldfab --help (start-up alone)", FOLDFAB + ["--help"])):
+            median, best = timed(command)
+            print(f"{'':<12}{what:<52}{median:>10.3f}{best:>9.3f}", flush=True)
         for label, location in (("PostgreSQL", url), ("SQLite", str(folder / "queue.sqlite3"))):
             store = open_queue(location)
             began = time.perf_counter()
@@ -273,7 +277,7 @@ def main_farm(argv: list[str]) -> None:
 
     with running_server() as server:
         print(f"three hosts, {args.jobs} jobs a run, one PostgreSQL queue (seed: the run's number)")
-        print(f"{'run':<26}{'killed (host, after line)':<28}{'interrupted':>12}{'s':>8}")
+        print(f"{'run':<34}{'killed (host, after line)':<28}{'interrupted':>12}{'s':>8}")
         for seed in [*range(args.runs), "restart"]:
             store = PostgresQueueStore(server.new_database())
             rng = random.Random(seed)
@@ -287,7 +291,7 @@ def main_farm(argv: list[str]) -> None:
             check_farm(store, args.jobs, run)
             resumed = [j.id for j in store.jobs() if j.attempts > 1]
             label = f"server restarted after line {run.restarted_after}" if seed == "restart" else f"seed {seed}"
-            print(f"{label:<26}{str(run.killed or '-'):<28}{str(resumed or '-'):>12}{elapsed:>8.1f}", flush=True)
+            print(f"{label:<34}{str(run.killed or '-'):<28}{str(resumed or '-'):>12}{elapsed:>8.1f}", flush=True)
             store.close()
     print(f"all {args.runs + 1} runs: every job done exactly once, by the host of its plotter, none lost")
 
