@@ -65,7 +65,10 @@ def cmd_queue_list(args: argparse.Namespace) -> int:
     """List jobs in the queue, oldest first, a page at a time (``--after``, ``--limit``)."""
     store = _queue_store(args)
     limit = args.limit if args.limit is not None else 0 if args.json else LIST_LIMIT
-    page = store.page(args.state, args.after, limit or None)
+    try:
+        page = store.page(args.state, args.after, limit or None)
+    finally:
+        store.close()  # a server's pool of connections, at once rather than whenever it is collected
     jobs = page.jobs
     if args.json:
         print(json.dumps([job.as_dict() for job in jobs], indent=1))
