@@ -3,10 +3,17 @@ claim throughput of many workers on one queue, PostgreSQL against SQLite.
 
 Run by hand:  python benchmarks/bench_queue.py
               python benchmarks/bench_queue.py claims [--workers 16] [--jobs 3200] [--postgres URL]
+              python benchmarks/bench_queue.py list [--jobs 100000] [--postgres URL]
+              python benchmarks/bench_queue.py farm [--runs 20] [--jobs 200]
 Targets: ``foldfab queue list`` with 10,000 jobs <= 0.3 s; ``foldfab queue add`` of a paper-scale job <= 0.5 s.
 ``claims``: WORKERS processes (each its own store, as hosts have) claim and finish JOBS jobs spread
 over many plotters; claims per second overall and the claim latency (median, 99th percentile), on a
 PostgreSQL server (URL, else a throw-away one started as the tests do) and on an SQLite file.
+``list``: a queue of JOBS jobs (filled in one statement), ``foldfab queue list`` end to end (its first
+page) and the store call alone, on both stores. Target: 100,000 jobs on PostgreSQL <= 0.3 s.
+``farm``: the farm test at full scale (the suite kills hosts in runs of fewer jobs): three hosts, JOBS
+jobs, RUNS runs each with a host SIGKILLed at a seeded random moment and started again, then one
+with the server restarted (pg_ctl restart); every job checked done exactly once on its plotter.
 """
 
 from __future__ import annotations
@@ -167,13 +174,7 @@ def main_claims(argv: list[str]) -> None:
     parser.add_argument("--jobs", type=int, default=3200)
     parser.add_argument("--postgres", metavar="URL", help="an empty database (default: a throw-away server)")
     args = parser.parse_args(argv)
-    server = None
-    if not args.postgres:
-        sys.path.insert(0, str(ROOT / "tests"))
-        from helpers.postgres import PostgresServer
-
-        server = PostgresServer().start()
-        args.postgres = server.new_database()
+    args.postgres, server = throwaway_server(args.postgres)
     folder = Path(tempfile.mkdtemp(prefix="foldfab-bench-claims-"))
     try:
         print(f"{args.workers} worker processes claim and finish {args.jobs} jobs on {8 * args.workers} plotters")
@@ -187,9 +188,121 @@ def main_claims(argv: list[str]) -> None:
             server.destroy()
 
 
+def throwaway_server(url: str | None):
+    """``url``, else a throw-away PostgreSQL server's new database (and the server, to destroy)."""
+    if url:
+        return url, None
+    sys.path.insert(0, str(ROOT / "tests"))
+    from helpers.postgres import PostgresServer
+
+    server = PostgresServer().start()
+    return server.new_database(), server
+
+
+def in_process(call, repeat: int = 20) -> float:
+    """Median wall time of ``call()`` in this process."""
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        call()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def main_list(argv: list[str]) -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="bench_queue.py list")
+    parser.add_argument("--jobs", type=int, default=100_000)
+    parser.add_argument("--postgres", metavar="URL", help="an empty database (default: a throw-away server)")
+    args = parser.parse_args(argv)
+    url, server = throwaway_server(args.postgres)
+    sys.path.insert(0, str(ROOT / "tests"))
+    from helpers.queues import fill_jobs
+
+    from foldfab.devices import load_device
+    from foldfab.programs.program import Program
+    from foldfab.queue.location import open_queue
+    from foldfab.queue.snapshot import make_snapshot
+
+    device = load_device("hp7475a")
+    snap = make_snapshot(Path("bench.toml"), "[design]\n", "bench", device,
+                         Program("IN;SP1;PU0,0;PD400,400;SP0;", "hpgl", device.name, (), ()))
+    folder = Path(tempfile.mkdtemp(prefix="foldfab-bench-list-"))
+    try:
+        print(f"queue list of {args.jobs} jobs (7 in 10 done, 2 queued); wall time, median (best) of {REPEAT}; "
+              "the store call alone: median of 20")
+        print(f"{'queue':<12}{'what':<52}{'median s':>10}{'best s':>9}")
+        for what, command in (("python -c 'import vpype' (the yardstick)", [sys.executable, "-c", "import vpype"]),
+                              ("foldfab --help (start-up alone)", FOLDFAB + ["--help"])):
+            median, best = timed(command)
+            print(f"{'':<12}{what:<52}{median:>10.3f}{best:>9.3f}", flush=True)
+        for label, location in (("PostgreSQL", url), ("SQLite", str(folder / "queue.sqlite3"))):
+            store = open_queue(location)
+            began = time.perf_counter()
+            fill_jobs(store, snap, args.jobs)
+            print(f"{label:<12}{'(filled in one statement)':<52}{time.perf_counter() - began:>10.3f}")
+            middle = args.jobs // 2
+            for what, extra in (("foldfab queue list (first page of 100)", []),
+                                (f"foldfab queue list --after {middle}", ["--after", str(middle)]),
+                                ("foldfab queue list --state queued", ["--state", "queued"]),
+                                ("foldfab queue list --limit 0 (every job)", ["--limit", "0"])):
+                median, best = timed(FOLDFAB + ["queue", "list", "--queue", location, *extra],
+                                     repeat=REPEAT if extra[-1:] != ["0"] else 3)
+                print(f"{label:<12}{what:<52}{median:>10.3f}{best:>9.3f}", flush=True)
+            for what, call in (("store.page(limit=100)", lambda: store.page(None, 0, 100)),
+                               (f"store.page(after={middle}, limit=100)", lambda: store.page(None, middle, 100)),
+                               ("store.page('queued', limit=100)", lambda: store.page("queued", 0, 100))):
+                print(f"{label:<12}{what:<52}{in_process(call):>10.4f}", flush=True)
+            store.close()
+    finally:
+        shutil.rmtree(folder)
+        if server is not None:
+            server.destroy()
+
+
+def main_farm(argv: list[str]) -> None:
+    import argparse
+    import random
+
+    parser = argparse.ArgumentParser(prog="bench_queue.py farm")
+    parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--jobs", type=int, default=200)
+    args = parser.parse_args(argv)
+    sys.path.insert(0, str(ROOT / "tests"))
+    from helpers.farm import add_jobs, check_farm, run_farm
+    from helpers.postgres import running_server
+
+    from foldfab.queue.postgres import PostgresQueueStore
+
+    with running_server() as server:
+        print(f"three hosts, {args.jobs} jobs a run, one PostgreSQL queue (seed: the run's number)")
+        print(f"{'run':<34}{'killed (host, after line)':<28}{'interrupted':>12}{'s':>8}")
+        for seed in [*range(args.runs), "restart"]:
+            store = PostgresQueueStore(server.new_database())
+            rng = random.Random(seed)
+            add_jobs(store, args.jobs, rng)
+            began = time.perf_counter()
+            if seed == "restart":
+                run = run_farm(store, rng, restart=server.restart)
+            else:
+                run = run_farm(store, rng, kill=True)
+            elapsed = time.perf_counter() - began
+            check_farm(store, args.jobs, run)
+            resumed = [j.id for j in store.jobs() if j.attempts > 1]
+            label = f"server restarted after line {run.restarted_after}" if seed == "restart" else f"seed {seed}"
+            print(f"{label:<34}{str(run.killed or '-'):<28}{str(resumed or '-'):>12}{elapsed:>8.1f}", flush=True)
+            store.close()
+    print(f"all {args.runs + 1} runs: every job done exactly once, by the host of its plotter, none lost")
+
+
 if __name__ == "__main__":
     cache_foldfab_bytecode()
     if sys.argv[1:2] == ["claims"]:
         main_claims(sys.argv[2:])
+    elif sys.argv[1:2] == ["list"]:
+        main_list(sys.argv[2:])
+    elif sys.argv[1:2] == ["farm"]:
+        main_farm(sys.argv[2:])
     else:
         main()

@@ -24,7 +24,6 @@ def _when(seconds: float) -> str:
 
 def cmd_queue_add(args: argparse.Namespace) -> int:
     """Build every job now (a bad job fails here, nothing is added) and queue the snapshots."""
-    from foldfab.errors import FoldfabError
     from foldfab.queue.records import NewJob
     from foldfab.queue.snapshot import make_snapshot
 
@@ -58,14 +57,24 @@ def format_job_line(job) -> str:
     return f"{job.id:>5} {state:<12} {job.priority:>4} {job.percent:>5.1f}%  {job.device:<16} {port:<24} {name}"
 
 
+LIST_LIMIT = 100
+"""Jobs ``foldfab queue list`` shows at once (a page); the JSON listing has them all unless told."""
+
+
 def cmd_queue_list(args: argparse.Namespace) -> int:
-    """List jobs in the queue, oldest first."""
+    """List jobs in the queue, oldest first, a page at a time (``--after``, ``--limit``)."""
     store = _queue_store(args)
-    jobs = store.jobs(args.state)
+    limit = args.limit if args.limit is not None else 0 if args.json else LIST_LIMIT
+    try:
+        page = store.page(args.state, args.after, limit or None)
+    finally:
+        store.close()  # a server's pool of connections, at once rather than whenever it is collected
+    jobs = page.jobs
     if args.json:
         print(json.dumps([job.as_dict() for job in jobs], indent=1))
     elif not jobs:
-        print(f"no {args.state + ' ' if args.state else ''}jobs in {store.location}")
+        print(f"no {args.state + ' ' if args.state else ''}jobs {f'after job {args.after} ' if args.after else ''}"
+              f"in {store.location}")
     else:
         lines = [f"{'ID':>5} {'STATE':<12} {'PRI':>4} {'DONE':>6}  {'DEVICE':<16} {'PLOTTER/PORT':<24} NAME"]
         lines.extend(format_job_line(job) for job in jobs)
@@ -73,8 +82,17 @@ def cmd_queue_list(args: argparse.Namespace) -> int:
             lines.append("* cancel requested: the worker stops the plotter")
         if any(len(job.target) > 24 for job in jobs):
             lines.append("~ plotter or port shortened: foldfab queue show ID has it whole")
+        if page.more:
+            lines.append(more_line(page.more, jobs[-1].id, args))
         print("\n".join(lines))
     return 0
+
+
+def more_line(more: int, last: int, args: argparse.Namespace) -> str:
+    """The last line of a page that is not the last: how many more, and the command for the next page."""
+    options = "".join(f" --{name} {getattr(args, name)}" for name in ("state", "limit") if getattr(args, name))
+    return (f"... {more} more {args.state + ' ' if args.state else ''}job{'s' * (more != 1)}: foldfab queue list "
+            f"--after {last}{options} (--limit 0 lists all)")
 
 
 def format_job(job, events) -> str:
@@ -373,6 +391,10 @@ def add_commands(sub) -> None:
     listing = commands.add_parser("list", parents=[common], help="list jobs")
     listing.add_argument("--state", choices=STATES, help="only jobs in this state")
     listing.add_argument("--json", action="store_true", help="print JSON")
+    listing.add_argument("--after", type=_int_from(0, MAX_JOB_ID, "expected a job id"), default=0, metavar="ID",
+                         help="only jobs with higher ids (the next page starts after the last job shown)")
+    listing.add_argument("--limit", type=_int_from(0, MAX_JOB_ID, "expected a number of jobs"), metavar="N",
+                         help=f"show at most N jobs, 0 for all (default {LIST_LIMIT}; --json: all)")
     listing.set_defaults(func=cmd_queue_list)
 
     show = commands.add_parser("show", parents=[common], help="one job and its event log")

@@ -231,3 +231,11 @@ class Control:
     cancel_requested: bool
     lost: bool
     """The job is no longer this worker's (its lease expired, or it was removed)."""
+
+
+@dataclass(frozen=True)
+class JobPage:
+    """One page of a listing: jobs in id order, and how many more match after the last of them."""
+
+    jobs: list[JobRecord]
+    more: int

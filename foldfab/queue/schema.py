@@ -54,12 +54,24 @@ class AddColumn:
 
 @dataclass(frozen=True)
 class Index:
+    """An index; ``columns`` may hold expressions (in parentheses) and DESC; ``where`` makes it partial."""
+
     name: str
     table: str
     columns: str
+    where: str = ""
 
     def render(self, dialect: str) -> list[str]:
-        return [f"CREATE INDEX {self.name} ON {self.table}({self.columns})"]
+        return [f"CREATE INDEX {self.name} ON {self.table}({self.columns})" + (f" WHERE {self.where}" if self.where
+                                                                               else "")]
+
+
+def resume(table: str = "") -> str:
+    """SQL true for a resume of ``table`` (an alias, or none): a job whose sheet is half drawn on its
+    plotter, interrupted, or queued again by retry without --restart after part of it was
+    acknowledged.  The first key of the claim order, and of the index that serves it."""
+    t = f"{table}." if table else ""
+    return f"({t}state = 'interrupted' OR ({t}state = 'queued' AND {t}acked_bytes > 0))"
 
 
 STATE_CHECK = ("CHECK (state IN ('queued', 'running', 'waiting', 'done', 'failed', 'cancelled', "
@@ -108,6 +120,10 @@ STEPS: tuple[tuple[Table | AddColumn | Index, ...], ...] = (
         Column("seen", "real", "NOT NULL"), Column("lease", "real", "NOT NULL"), Column("stopped", "real"))),
      AddColumn("jobs", Column("plotter", "text")),
      AddColumn("jobs", Column("any_plotter", "integer", "NOT NULL DEFAULT 0"))),
+    # version 5: the claim order as an index over the runnable jobs only, so a claim walks it to
+    # the first free plotter instead of sorting every runnable job (the list pages by id: the key)
+    (Index("jobs_by_claim_order", "jobs", f"({resume()}) DESC, priority DESC, id",
+           "state IN ('queued', 'interrupted')"),),
 )
 VERSION = len(STEPS)
 

@@ -35,7 +35,8 @@ STATEMENTS = migrations("sqlite")
 MIGRATIONS: tuple[str, ...] = tuple(";\n".join(step) for step in STATEMENTS)
 """Per schema version, the script that brings the version before it there (:mod:`foldfab.queue.schema`)."""
 SCHEMA_VERSION = len(MIGRATIONS)
-QUERIES = Queries("NOT foldfab_pid_alive(j.worker_pid)", "j.id NOT IN (SELECT value FROM json_each(:exclude))")
+QUERIES = Queries("NOT foldfab_pid_alive(j.worker_pid)", "j.id NOT IN (SELECT value FROM json_each(:exclude))",
+                  "INDEXED BY jobs_by_claim_order")
 
 
 class SqliteQueueStore(SqlQueueStore):

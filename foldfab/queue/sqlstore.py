@@ -19,8 +19,9 @@ from typing import Any, Sequence
 
 from foldfab.errors import FoldfabError
 from foldfab.queue.records import (ACTIVE, FINISHED, MAX_COPIES, MAX_JOB_ID, PRIORITIES, RUNNABLE, Claim, Control,
-                                   Event, JobRecord, NewJob, WorkerId)
+                                   Event, JobPage, JobRecord, NewJob, WorkerId)
 from foldfab.queue.plotters import PlotterRegistry
+from foldfab.queue.schema import resume
 from foldfab.queue.snapshot import Snapshot, drawn_length, program_from, program_meta
 
 
@@ -28,17 +29,16 @@ _JOB_COLUMNS = """j.id, s.name, s.job_path, s.device, j.port, j.priority, j.copy
     {state}, j.created, j.updated, j.worker, j.lease_expires, j.acked_bytes, s.program_bytes,
     j.progress, j.pauses_done, j.cancel_requested, j.attempts, {reason}, j.drawn_mm, j.drawn_total_mm,
     j.plotter, j.any_plotter"""
-# A resume: a job whose sheet is half drawn on its plotter, interrupted, or queued again by
-# retry without --restart after part of it was acknowledged.
-_RESUME = "({t}.state = 'interrupted' OR ({t}.state = 'queued' AND {t}.acked_bytes > 0))"
+_RESUME = resume("{t}")  # a resume (schema.resume), of the table alias t
 
 
 class Queries:
     """The statements whose text depends on the dialect: ``pid_dead`` is an SQL condition that
     ``j.worker_pid`` (a process on this host) is gone; ``not_excluded`` one that ``j.id`` is not
-    in the ``:exclude`` parameter."""
+    in the ``:exclude`` parameter; ``claim_hint`` follows ``jobs j`` in a claim's FROM (SQLite's
+    ``INDEXED BY``: without statistics its planner would sort every runnable job instead)."""
 
-    def __init__(self, pid_dead: str, not_excluded: str):
+    def __init__(self, pid_dead: str, not_excluded: str, claim_hint: str = ""):
         # A running or waiting job whose worker is dead (lease expired, or its process on this
         # machine gone) is reported as what the next write to the queue makes it.
         self.dead = (f"(j.lease_expires < :now OR (j.worker_host = :host AND j.worker_pid IS NOT NULL "
@@ -64,7 +64,8 @@ class Queries:
                               AND (o.state IN ('running', 'waiting')
                                    OR ({_RESUME.format(t='o')} AND NOT {_RESUME.format(t='j')})))"""
         self.claim_order = f"ORDER BY {_RESUME.format(t='j')} DESC, j.priority DESC, j.id"
-        self.runnable = f"{self.select_jobs} {self.runnable_where} {self.claim_order}"
+        self.runnable = (f"{self.select_jobs} {self.runnable_where} {self.claim_order}"
+                         .replace("FROM jobs j ", f"FROM jobs j {claim_hint} ", 1))
 
 
 class SqlQueueStore(PlotterRegistry):
@@ -235,13 +236,23 @@ class SqlQueueStore(PlotterRegistry):
         return ids
 
     def jobs(self, state: str | None = None) -> list[JobRecord]:
+        return self.page(state).jobs
+
+    def page(self, state: str | None = None, after: int = 0, limit: int | None = None) -> JobPage:
+        if limit is not None and limit < 1:
+            raise ValueError("a page holds one job or more")
         if not self._exists():
-            return []
+            return JobPage([], 0)
         with self._read() as db:
-            where = f"WHERE {self.queries.effective_state} = :state" if state else ""
-            rows = db.execute(f"{self.queries.select_jobs} {where} ORDER BY j.id",
-                              self._params(db, state=state)).fetchall()
-        return [_record(row) for row in rows]
+            where = "WHERE j.id > :after" + (f" AND {self.queries.effective_state} = :state" if state else "")
+            params = self._params(db, state=state, after=min(max(after, 0), MAX_JOB_ID), limit=limit)
+            # the primary key serves ORDER BY j.id with LIMIT: a page reads its own rows, not the queue
+            rows = db.execute(f"{self.queries.select_jobs} {where} ORDER BY j.id"
+                              + (" LIMIT :limit" if limit is not None else ""), params).fetchall()
+            more = 0
+            if limit is not None and len(rows) == limit:
+                more = db.execute(f"SELECT count(*) FROM jobs j {where}", params | {"after": rows[-1][0]}).fetchone()[0]
+        return JobPage([_record(row) for row in rows], more)
 
     def job(self, job_id: int) -> JobRecord:
         with self._read() as db:
@@ -255,9 +266,17 @@ class SqlQueueStore(PlotterRegistry):
 
     def snapshot(self, job_id: int) -> Snapshot:
         with self._read() as db:
-            row = db.execute("SELECT s.name, s.job_path, s.job_text, s.device, s.device_text, s.program, "
-                             "s.program_meta, s.program_sha256 FROM jobs j JOIN snapshots s "
-                             "ON s.id = j.snapshot_id WHERE j.id = ?", (_job_id(job_id),)).fetchone()
+            row = self._snapshot_row(db, job_id)
+        return self._checked_snapshot(job_id, row)
+
+    @staticmethod
+    def _snapshot_row(db: Any, job_id: int) -> tuple | None:
+        return db.execute("SELECT s.name, s.job_path, s.job_text, s.device, s.device_text, s.program, "
+                          "s.program_meta, s.program_sha256 FROM jobs j JOIN snapshots s "
+                          "ON s.id = j.snapshot_id WHERE j.id = ?", (_job_id(job_id),)).fetchone()
+
+    def _checked_snapshot(self, job_id: int, row: tuple | None) -> Snapshot:
+        """The snapshot in ``row``; FoldfabError if there is none or its program does not match its hash."""
         if row is None:
             raise self._no_job(job_id)
         *texts, program, meta, digest = row
@@ -370,8 +389,11 @@ class SqlQueueStore(PlotterRegistry):
             on = f" on plotter {plotter} at {port}" if plotter else f" at {port}" if port and job.any_plotter else ""
             self._event(db, job.id, "started", f"{what} by worker {worker}{on} (attempt {job.attempts + 1})")
             job = self._get(db, job.id)
+            # the snapshot in the claim's own transaction: a server lost once it commits must not
+            # pass for a damaged snapshot (the worker would fail the job) nor leave the job held
+            row = self._snapshot_row(db, job.id)
         try:
-            return Claim(job, self.snapshot(job.id))
+            return Claim(job, self._checked_snapshot(job.id, row))
         except FoldfabError as exc:  # damaged: the worker fails the job (and says so), not itself
             return Claim(job, None, str(exc))
 

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Protocol, Sequence
 from foldfab.errors import FoldfabError
 
 if TYPE_CHECKING:
-    from foldfab.queue.records import Claim, Control, Event, JobRecord, NewJob, PlotterRecord, WorkerId
+    from foldfab.queue.records import Claim, Control, Event, JobPage, JobRecord, NewJob, PlotterRecord, WorkerId
     from foldfab.queue.snapshot import Snapshot
 
 DEFAULT_WAIT = 10.0
@@ -33,7 +33,12 @@ class QueueStore(Protocol):
         """Queue every copy of every job, all or nothing; the new ids in order."""
 
     def jobs(self, state: str | None = None) -> list[JobRecord]:
-        """Jobs in claim order (a dead worker's job already shows as interrupted)."""
+        """Jobs in id order (a dead worker's job already shows as interrupted)."""
+
+    def page(self, state: str | None = None, after: int = 0, limit: int | None = None) -> JobPage:
+        """Jobs with ids above ``after`` (in ``state``, as :meth:`jobs` sees it), at most ``limit``
+        (None: all) in id order, and how many more there are (keyset paging: a page costs the
+        same however deep it is)."""
 
     def job(self, job_id: int) -> JobRecord:
         """One job; FoldfabError if there is none."""

@@ -40,7 +40,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from functools import partial
-from typing import TYPE_CHECKING, Callable, Protocol
+from typing import TYPE_CHECKING, Callable, Protocol, TypeVar
 
 from foldfab.errors import FoldfabError
 from foldfab.queue.records import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, WorkerId,
@@ -109,6 +109,7 @@ def _discard_stale_replies(link, quiet: float = 0.1, limit: float = 5.0) -> None
 
 Locator = Callable[[int], "tuple[int, str]"]
 """Given the first stroke not acknowledged, the first stroke not drawn and how it was found."""
+T = TypeVar("T")
 
 
 class WorkerUI(Protocol):
@@ -354,8 +355,9 @@ class Worker:
         summary = WorkerSummary()
         while not self.stopping.is_set():
             self._keep_plotter()
-            claim = self.store.claim(self.id, self.options.lease, self.options.device, self.options.port,
-                                     exclude=self._skipped(), plotter=self.plotter)
+            claim = self._patiently(lambda: self.store.claim(self.id, self.options.lease, self.options.device,
+                                                             self.options.port, exclude=self._skipped(),
+                                                             plotter=self.plotter), True)
             if claim is None:
                 if self.options.mode != "follow":
                     return self._ended(summary)
@@ -409,7 +411,8 @@ class Worker:
 
             locate = partial(locate_resume, program, device, job.port, pauses_done=job.pauses_done)
             start = start_point(program, device, job.acked_bytes, job.pauses_done,
-                                locate if self.locate and not _failed_last(self.store.events(job.id)) else None)
+                                locate if self.locate and not _failed_last(self._patiently(
+                                    lambda: self.store.events(job.id))) else None)
         except FoldfabError as exc:
             return self._end(job, heartbeat, "failed", f"cannot start: {exc}")
         self.ui.job_started(job, start.note)
@@ -461,16 +464,24 @@ class Worker:
     def _finish(self, job_id: int, state: str, message: str, acked: int | None, heartbeat: _Heartbeat) -> bool:
         """Record the end; a store that survives outages is tried again, backing off, until it is
         back (at most ``FINISH_PATIENCE`` s): the end of a sheet drawn offline is not lost."""
+        return self._patiently(lambda: self.store.finish(job_id, self.id, state, message, acked,
+                                                         heartbeat.pauses_done, heartbeat.progress, heartbeat.drawn))
+
+    def _patiently(self, call: Callable[[], T], stoppable: bool = False) -> T | None:
+        """``call()``, a store operation; on a store that survives outages, tried again backing off
+        while its server is out of reach, at most ``FINISH_PATIENCE`` s (``stoppable``: None once
+        the worker is stopped meanwhile).  A host of a farm waits out a server restart."""
         delay, deadline = self.options.heartbeat, time.monotonic() + FINISH_PATIENCE
         while True:
             try:
-                return self.store.finish(job_id, self.id, state, message, acked, heartbeat.pauses_done,
-                                         heartbeat.progress, heartbeat.drawn)
+                return call()
             except QueueBusy:
                 if not self.store.survives_outages or time.monotonic() + delay > deadline:
                     raise
-                time.sleep(delay)  # backing off until the server is back
-                delay = min(2 * delay, MAX_BACKOFF)
+            stopped = self.stopping.wait(delay) if stoppable else time.sleep(delay)  # backing off
+            if stopped:
+                return None
+            delay = min(2 * delay, MAX_BACKOFF)
 
 
 def _failed_last(events) -> bool:

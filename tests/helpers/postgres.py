@@ -66,11 +66,22 @@ class PostgresServer:
     def start(self) -> "PostgresServer":
         if not self.data.exists():
             self._run("initdb", "-D", str(self.data), "-U", SUPERUSER, "--auth=trust", "-E", "UTF8", "--no-sync")
+        self._pg_ctl("start")
+        return self._ready()
+
+    def restart(self, mode: str = "fast") -> None:
+        """``pg_ctl restart``: the server stops (``mode``), cutting every connection, and starts again."""
+        self._pg_ctl("restart", "-m", mode)
+        self._ready()
+
+    def _pg_ctl(self, action: str, *args: str) -> None:
         options = f"-k {self.socket_dir} -c listen_addresses='' -c fsync=off -c max_connections=200"
-        result = self._run("pg_ctl", "start", "-w", "-t", "120", "-D", str(self.data), "-l", str(self.log),
+        result = self._run("pg_ctl", action, *args, "-w", "-t", "120", "-D", str(self.data), "-l", str(self.log),
                            "-o", options, check=False)
         if result.returncode != 0:
-            raise RuntimeError(f"pg_ctl start failed: {result.stderr}\n{self.log.read_text()}")
+            raise RuntimeError(f"pg_ctl {action} failed: {result.stderr}\n{self.log.read_text()}")
+
+    def _ready(self) -> "PostgresServer":
         ready = self._run("pg_isready", "-h", str(self.socket_dir), "-U", SUPERUSER, "-d", "postgres", check=False)
         if ready.returncode != 0:
             raise RuntimeError(f"the server does not accept connections: {ready.stdout}")
