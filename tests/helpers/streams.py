@@ -38,6 +38,20 @@ def xonxoff_profile(folder: Path) -> Path:
     return path
 
 
+def instant_motion(name: str | Path, folder: Path) -> Path:
+    """A copy of a profile (a built-in's name, or a path) whose motion takes no time at all:
+    on it the link is the only limit."""
+    source = Path(name) if Path(name).suffix == ".toml" else ROOT / "devices" / f"{name}.toml"
+    text = source.read_text()
+    text = re.sub(r"(?ms)^\[limits\]\n.*?(?=^\[)", "", text)
+    text = re.sub(r"(?m)^(draw_speed|travel_speed|speed|z_speed) = .*$", r"\1 = 100000", text)
+    text = re.sub(r"(?m)^acceleration = .*$", "acceleration = 1000000000", text)
+    text = re.sub(r"(?m)^pen_lift_time = .*$", "pen_lift_time = 0", text)
+    path = folder / f"{source.stem}-instant.toml"
+    path.write_text(text)
+    return path
+
+
 def device_for(name: str, xonxoff_device: str):
     return load_device(xonxoff_device if name == "xonxoff" else name)
 
