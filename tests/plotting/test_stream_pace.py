@@ -76,3 +76,24 @@ def test_sim_port_close_lets_the_held_bytes_go(tmp_path):
     port.close()
     stats = port.simulator.stats
     assert stats.bytes_received == len(data) and stats.bytes_lost == 0
+
+
+@pytest.mark.parametrize("name, link_bound", [("graphtec-ce6000", True), ("grbl", True), ("graphtec-ce6000", False),
+                                              ("hp7475a", False)])
+def test_estimate_within_a_tenth_of_the_plotters_clock(name, link_bound, tmp_path):
+    """The estimate counts the serial line where it, not motion, sets the pace: within 10% of
+    the simulated plotter's clock on a link-bound profile (motion instant: 9600 baud on the
+    Graphtec, 115200 on GRBL) as on a motion-bound one (the profiles' own)."""
+    from foldfab.programs.estimate import estimate
+    from foldfab.programs.interpret import interpret
+
+    profile = str(instant_motion(name, tmp_path)) if link_bound else name
+    device = load_device(profile)
+    fab = fabricated(VASE, profile)
+    times = estimate(interpret(fab.program, device, fab.plan.sheet), device)
+    port = open_port(SIM, device)  # at the profile's own baud rate
+    stream(port, fab.program, device)
+    stats = port.simulator.stats
+    port.close()
+    assert (times.link_wait > times.total / 2) == link_bound
+    assert abs(times.total - (stats.plot_time - stats.paused_time)) <= 0.1 * times.total
