@@ -24,7 +24,7 @@ FLOWS = {"hp7475a": "escb", "graphtec-ce6000": "rtscts", "roland-gx24": "none", 
 SIM = "sim://?time=instant&sheet=A3"
 FAST_BAUD = 115200
 """Host and simulated wire run at this rate where a test is about correctness, not timing:
-the XON/XOFF and RTS/CTS senders pace their writes at the line rate in wall time."""
+short virtual times, and few pacing waits for the XON/XOFF and RTS/CTS senders."""
 
 
 def xonxoff_profile(folder: Path) -> Path:

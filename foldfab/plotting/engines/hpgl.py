@@ -7,6 +7,9 @@ past a pause:
   holds where no driver does it (sockets, pseudo-terminals, ``--no-xonxoff``); writes
   are paced at the line rate so that at most :attr:`HPGLSender.ahead` bytes are on the
   wire when XOFF comes (a pseudo-terminal's kernel buffer would otherwise hold kilobytes).
+  The pace is the plotter's clock, awaited in a blocking read (an XOFF or an answer ends
+  it).  Where the port's driver obeys the handshake, :data:`DRIVER_LEAD` of line time is
+  written ahead, so a host that runs late (a busy machine) does not leave the link idle.
 * ``rtscts``: ``port.cts`` is checked before every write (same pacing).
 * ``escb``: ``ESC.B`` asks the free buffer space; at most that much is sent.
 * ``none``: no handshake at all: at most one buffer is sent between two checkpoints.
@@ -23,7 +26,9 @@ another pen state) is line noise that kept the program valid (a digit turned int
 or lost steps, and stops the job like a plotter error; a resume draws again from the last
 check that agreed.  Checkpoints come at pauses, at the end and every :data:`CHECK_EVERY` bytes
 (at most a buffer), so an error is found within that window and the executed count is
-exact there; with ``escb`` the buffer is first drained by ``ESC.B`` polls, which are
+exact there; half a window after the last acknowledged byte an inline marker (below) is
+written if none is on its way, and its answer, read while the rest of the window goes out,
+moves the window on, so the link does not wait for the checkpoint's round trip; with ``escb`` the buffer is first drained by ``ESC.B`` polls, which are
 answered at once, so a hung plotter shows within the stall timeout. Between checkpoints
 the executed count is conservative: ``ESC.B`` gives it exactly at each query; the other
 modes assume a full buffer and the bytes on the wire are still to execute.  After a
@@ -70,8 +75,7 @@ second keeps it busy, and a stop (Ctrl-C, a host that dies) leaves little in its
 
 DRIVER_LEAD = 0.5
 """HP-GL with a driver that obeys the handshake: seconds of line time the sender keeps written
-ahead of the wire (at most a buffer), so a host that is late to run again (a loaded machine)
-does not leave the link idle."""
+ahead of the wire (at most a buffer)."""
 
 HPGL_ERRORS = {
     1: "instruction not recognized",
@@ -255,8 +259,7 @@ class HPGLSender(Sender):
 
     def window_marker(self, stop: int) -> bool:
         """An inline marker is due half a checkpoint window after the last acknowledged byte, if
-        none is on its way: its answer comes while the rest of the window is sent, so the window
-        moves on without the checkpoint's round trip, and the link never waits for the host."""
+        none is on its way (see the module docstring)."""
         return (not self.marks and self.sent < stop and self.data[self.sent - 1] == ord(";")
                 and self.sent - self.checked >= self.check_every // 2)
 
