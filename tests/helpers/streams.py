@@ -110,7 +110,7 @@ class Spy:
         data = self._port.read(size)
         if self._grbl:
             self._replies.extend(data)
-            *lines, rest = bytes(self._replies).split(b"\r\n")
+            *lines, rest = re.split(rb"[\r\n]", bytes(self._replies))  # "ok\r" is a whole answer
             self._replies[:] = rest
             for line in lines:
                 if (line == b"ok" or line.startswith(b"error:")) and self._lines:
