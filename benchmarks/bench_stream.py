@@ -1,6 +1,8 @@
 """Streaming: link use, plotter starvation, host CPU, on the simulated plotters.
 
 Run by hand:  python benchmarks/bench_stream.py   (about three minutes)
+              python benchmarks/bench_stream.py --load 2 --part link   (link-bound only, with two
+              CPU-bound processes running throughout: a loaded host, both cores busy)
 
 1. Link-bound: every device at 9600 baud with motion made instant (a profile copy with
    huge speeds and no pen-lift time), so the wire is the only limit; ``time=real``
@@ -20,10 +22,16 @@ Run by hand:  python benchmarks/bench_stream.py   (about three minutes)
    (a simulated cutter behind a pyusb backend), both ``time=real``, beside the same job over
    serial at 9600 baud; then with the profile's own motion (``time=instant``), its starvation.
    ``python benchmarks/bench_stream.py --usb`` runs this part only.
+
+``--load N`` runs N CPU-bound processes (each a busy loop, at normal priority) from before the
+first measurement to after the last: the sender must keep the link full when the host is busy
+(the plotter, not the host, sets the pace).  ``--part`` runs one part (link, motion, cpu, usb).
 """
 
 from __future__ import annotations
 
+import argparse
+import contextlib
 import re
 import signal
 import subprocess
@@ -42,23 +50,14 @@ from foldfab.plotting.stream import stream
 from foldfab.plotting.transport import open_port
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
+from helpers.streams import instant_motion  # noqa: E402  (a profile copy whose motion takes no time)
+
 DEVICES = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl"]
 GPGL = ["silhouette-cameo-4"]
 """Motion-bound only: GP-GL has no reply per command for a send-and-wait to compare with."""
 SPEC = {"sheet": "A3", "margin": 5, "scale": 0.4}
 BAUD = 9600
-
-
-def instant_motion(name: str, folder: Path) -> Path:
-    """A copy of a built-in profile whose motion takes no time at all."""
-    text = (ROOT / "devices" / f"{name}.toml").read_text()
-    text = re.sub(r"(?ms)^\[limits\]\n.*?(?=^\[)", "", text)
-    text = re.sub(r"(?m)^(draw_speed|travel_speed|speed|z_speed) = .*$", r"\1 = 100000", text)
-    text = re.sub(r"(?m)^acceleration = .*$", "acceleration = 1000000000", text)
-    text = re.sub(r"(?m)^pen_lift_time = .*$", "pen_lift_time = 0", text)
-    path = folder / f"{name}-instant.toml"
-    path.write_text(text)
-    return path
 
 
 def program_for(device, job: str = "vase-svg", strategy: str = "force"):
@@ -180,11 +179,31 @@ def usb_transports() -> None:
                       f"{len(program.text) / stats.plot_time:>10.0f}{stats.starved_time / stats.plot_time:>9.2%}")
 
 
+@contextlib.contextmanager
+def cpu_load(processes: int):
+    """``processes`` busy loops in other processes while the block runs (a loaded host)."""
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(processes)]
+    try:
+        yield
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+
+
+PARTS = {"link": link_bound, "motion": motion_bound, "cpu": host_cpu, "usb": usb_transports}
+
 if __name__ == "__main__":
-    if sys.argv[1:] == ["--usb"]:
-        usb_transports()
-        sys.exit(0)
-    link_bound()
-    motion_bound()
-    host_cpu()
-    usb_transports()
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--load", type=int, default=0, metavar="N",
+                        help="run N CPU-bound processes during the measurement (2: both cores of this machine)")
+    parser.add_argument("--part", choices=sorted(PARTS), action="append",
+                        help="run only this part (repeatable); default: all")
+    parser.add_argument("--usb", action="store_true", help="the USB transports only (as --part usb)")
+    args = parser.parse_args()
+    parts = ["usb"] if args.usb else args.part or list(PARTS)
+    if args.load:
+        print(f"host loaded: {args.load} CPU-bound processes running")
+    with cpu_load(args.load):
+        for part in parts:
+            PARTS[part]()

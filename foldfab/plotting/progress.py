@@ -96,12 +96,14 @@ class JobProgress:
         leading: dict[int, list] = {}
         for travel in run.travels:
             leading.setdefault(travel.next_stroke, []).append(travel)
-        seconds = [estimate(Interpretation(run.protocol, [s], leading.get(i, [])), device).total
+        # motion only: the senders weigh a stroke's motion against its link time themselves, and
+        # the ETA scales by the pace the plotter shows
+        seconds = [estimate(Interpretation(run.protocol, [s], leading.get(i, [])), device, link=False).total
                    for i, s in enumerate(self.strokes)]
         self.time_done = [0.0]
         for value in seconds:
             self.time_done.append(self.time_done[-1] + value)
-        self.time_total = estimate(run, device).total
+        self.time_total = estimate(run, device, link=False).total
 
     @property
     def drawn_total(self) -> float:

@@ -24,6 +24,12 @@ times its :func:`axis_factors`, and caps a drawing speed at the travel speed so 
 as GRBL's planner does; a junction's acceleration is scaled along the difference of the
 two moves' directions.  Otherwise the one ``acceleration`` serves every direction.
 
+The link: the plotter cannot finish a stroke before the program's bytes up to its end have
+come down the line (start, data, parity and stop bits per byte at the profile's ``[serial]``
+baud rate, counted from the first stroke's command), so on a slow line the link, not motion,
+sets the pace; :func:`link_waits` adds what each stroke waits for its bytes beyond its own
+motion, as if the plotter's buffer were as large as it needs (``link_wait``).
+
 ``lower_bound`` is what no plan can beat for the same strokes: drawn length at the
 draw speed with infinite acceleration, plus one pen down and one pen up per stroke.
 """
@@ -63,10 +69,29 @@ class Estimate:
     lower_bound: float
     layers: dict[str, LayerTime] = field(default_factory=dict)
     """Per layer name in order of first appearance; a travel counts for the layer it leads to."""
+    link_wait: float = 0.0
+    """Seconds the plotter waits for the link beyond its motion (see :func:`link_waits`)."""
 
     @property
     def total(self) -> float:
-        return self.draw_time + self.travel_time + self.lift_time
+        return self.draw_time + self.travel_time + self.lift_time + self.link_wait
+
+
+def link_waits(strokes: list, motion_seconds: np.ndarray, device: DeviceProfile) -> np.ndarray:
+    """Seconds each stroke waits for its bytes beyond its motion (``motion_seconds``: its draw,
+    lift and travel time).  Stroke k ends at ``T[k] = max(T[k-1] + m[k], L[k])`` (``L``: when its
+    last byte has arrived), that is ``T = M + max(0, max over j <= k of L[j] - M[j])`` with ``M``
+    the running motion total.  Zeros for strokes without byte offsets (not read from a program)."""
+    import numpy as np
+
+    ends = np.array([s.end for s in strokes], dtype=float)
+    if not len(ends) or (ends < 0).any():
+        return np.zeros(len(ends))
+    line = device.serial
+    byte_time = (1 + line.bytesize + (line.parity != "N") + line.stopbits) / line.baudrate
+    motion = np.cumsum(motion_seconds)
+    done = motion + np.maximum.accumulate(np.maximum((ends - strokes[0].offset) * byte_time - motion, 0.0))
+    return np.maximum(np.diff(done, prepend=0.0) - motion_seconds, 0.0)
 
 
 def axis_factors(steps: np.ndarray) -> np.ndarray:
@@ -243,8 +268,9 @@ def planned_segments(points: np.ndarray, starts: np.ndarray, speeds: np.ndarray,
     return totals, segment_times(lengths, speed, ends[:-1], ends[1:], acceleration), owner
 
 
-def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
-    """Estimate the run time of ``interpretation`` on ``device``."""
+def estimate(interpretation: Interpretation, device: DeviceProfile, link: bool = True) -> Estimate:
+    """Estimate the run time of ``interpretation`` on ``device`` (``link``: with the waits for
+    the serial line, :func:`link_waits`; without, motion only)."""
     import numpy as np
 
     motion = device.motion
@@ -265,9 +291,13 @@ def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
     steps = ends[:, 2:] - ends[:, :2]
     travel_lengths = np.hypot(steps[:, 0], steps[:, 1])
     moves = travel_times(steps, motion)
+    waits = np.zeros(len(strokes))
     if strokes:
-        leads_to = np.array([t.next_stroke for t in travels], dtype=np.intp)
-        travel_layers = stroke_layers[np.minimum(leads_to, len(strokes) - 1)]
+        leads_to = np.minimum(np.array([t.next_stroke for t in travels], dtype=np.intp), len(strokes) - 1)
+        travel_layers = stroke_layers[leads_to]
+        if link:
+            waits = link_waits(strokes, seconds + 2 * motion.pen_lift_time
+                               + np.bincount(leads_to, weights=moves, minlength=len(strokes)), device)
     else:
         if travels:
             names["travel"] = 0
@@ -278,14 +308,14 @@ def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
     travelled = np.bincount(travel_layers, weights=travel_lengths, minlength=count)
     # each layer's strokes, then the travels that lead to it, each in order (bincount adds in order)
     times = np.bincount(np.concatenate([stroke_layers, travel_layers]),
-                        weights=np.concatenate([seconds + 2 * motion.pen_lift_time, moves]),
+                        weights=np.concatenate([seconds + 2 * motion.pen_lift_time + waits, moves]),
                         minlength=count)
     layers = {name: LayerTime(float(drawn[i]), int(lifts[i]), float(travelled[i]), float(times[i]))
               for name, i in names.items()}
     lift_time = 2 * motion.pen_lift_time * len(strokes)
     lower = _running_total(lengths / speeds)
     return Estimate(_running_total(seconds), float(moves.sum()), lift_time,
-                    lower + lift_time, layers)
+                    lower + lift_time, layers, _running_total(waits))
 
 
 def _running_total(values: np.ndarray) -> float:

@@ -34,8 +34,6 @@ Every store (:mod:`foldfab.queue.sqlite`, :mod:`foldfab.queue.postgres`, both on
 from __future__ import annotations
 
 import os
-import secrets
-import socket
 from dataclasses import dataclass
 
 from foldfab.errors import FoldfabError
@@ -199,6 +197,9 @@ class WorkerId:
     @classmethod
     def current(cls) -> WorkerId:
         """A new identity for a worker in this process."""
+        import secrets  # here: the command line's parser reads this module's limits (hmac, hashlib, socket: 50-150 ms)
+        import socket
+
         return cls(socket.gethostname(), os.getpid(), secrets.token_hex(4))
 
     def __str__(self) -> str:

@@ -114,6 +114,7 @@ class Simulator:
         self._job_bytes = 0  # bytes received before it
         self._job_drawn = 0.0  # mm drawn before it
         self._overrunning = False
+        self._wire_end = 0.0  # when the host's last byte so far was through the wire
         self.line = bytearray()  # the line being read, for protocols read line by line
         self.line_start = 0  # its stream offset
         serial = device.serial
@@ -402,6 +403,7 @@ class Simulator:
             self._overrunning = lost > 0
             stats.max_fill = max(stats.max_fill, len(self.rx))
         self._spend(last)
+        self._wire_end = last
         received = stats.bytes_received
         if self.unplug_at is not None and received >= self.unplug_at:
             self.disconnected, self.unplug_at = True, None
@@ -421,6 +423,10 @@ class Simulator:
             kind = self._idle_kind()
             if kind == "starved":
                 stats.starved_time += self._idle
+                silent = t - self.byte_time - max(t - self._idle, self._wire_end)  # the wire idle too
+                if silent > 1e-9:
+                    stats.link_starved_time, stats.link_starvations = (stats.link_starved_time + silent,
+                                                                       stats.link_starvations + 1)
             elif kind != "ended":
                 stats.paused_time += self._idle
                 if self._parked is None or self._parked.reason != kind:

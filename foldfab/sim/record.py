@@ -66,6 +66,11 @@ class SimStats:
     more with junction speeds and a planner too short to look ahead as far as the estimate)."""
     starved_time: float = 0.0
     """Idle with nothing to execute while more of the job was still to come."""
+    link_starved_time: float = 0.0
+    """The part of ``starved_time`` when the host's wire carried nothing either: the host let the
+    device wait (a round trip it waited on, or a host too slow to write), not the line's pace."""
+    link_starvations: int = 0
+    """How many times that happened."""
     paused_time: float = 0.0
     """Held or parked for the operator (see ``pauses``)."""
     stalled_time: float = 0.0

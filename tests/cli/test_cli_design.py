@@ -774,18 +774,3 @@ def test_svg_user_unit_keeps_every_vertex_apart_on_import(shortest, count, seed)
     assert unit <= 0.1 and exponent == pytest.approx(round(exponent))
     assert gaps.min() / unit >= 10 * (1 - 1e-12)
     assert unit == 0.1 or gaps.min() / (10 * unit) < 10
-
-
-@pytest.mark.parametrize("argv, heavy", [
-    (["--help"], {"vpype", "scipy", "sqlite3", "numpy", "trimesh", "serial"}),
-    (["design", str(ROOT / "jobs" / "hexagon-fig8a.toml")], {"vpype", "scipy", "sqlite3", "trimesh", "serial"}),
-])
-def test_a_command_imports_only_what_it_uses(argv, heavy):
-    """``foldfab --help`` reads the parser only, and ``design`` builds geometry only: neither loads
-    the plotting libraries nor a queue store (their start-up is most of what they cost)."""
-    code = ("import sys, runpy\nsys.argv = ['foldfab', *sys.argv[1:]]\n"
-            "try:\n    runpy.run_module('foldfab', run_name='__main__')\nexcept SystemExit:\n    pass\n"
-            f"loaded = {sorted(heavy)!r}\n"
-            "print(sorted(m for m in loaded if m in sys.modules), file=sys.stderr)\n")
-    result = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, cwd=ROOT)
-    assert result.stderr.strip().splitlines()[-1] == "[]", result.stderr

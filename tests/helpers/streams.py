@@ -24,7 +24,7 @@ FLOWS = {"hp7475a": "escb", "graphtec-ce6000": "rtscts", "roland-gx24": "none", 
 SIM = "sim://?time=instant&sheet=A3"
 FAST_BAUD = 115200
 """Host and simulated wire run at this rate where a test is about correctness, not timing:
-the XON/XOFF and RTS/CTS senders pace their writes at the line rate in wall time."""
+short virtual times, and few pacing waits for the XON/XOFF and RTS/CTS senders."""
 
 
 def xonxoff_profile(folder: Path) -> Path:
@@ -34,6 +34,20 @@ def xonxoff_profile(folder: Path) -> Path:
     text = text.replace("xonxoff = false", "xonxoff = true")
     text = re.sub(r'flow_control = "escb".*', 'flow_control = "xonxoff"', text)
     path = folder / "hp7475a-xonxoff.toml"
+    path.write_text(text)
+    return path
+
+
+def instant_motion(name: str | Path, folder: Path) -> Path:
+    """A copy of a profile (a built-in's name, or a path) whose motion takes no time at all:
+    on it the link is the only limit."""
+    source = Path(name) if Path(name).suffix == ".toml" else ROOT / "devices" / f"{name}.toml"
+    text = source.read_text()
+    text = re.sub(r"(?ms)^\[limits\]\n.*?(?=^\[)", "", text)
+    text = re.sub(r"(?m)^(draw_speed|travel_speed|speed|z_speed) = .*$", r"\1 = 100000", text)
+    text = re.sub(r"(?m)^acceleration = .*$", "acceleration = 1000000000", text)
+    text = re.sub(r"(?m)^pen_lift_time = .*$", "pen_lift_time = 0", text)
+    path = folder / f"{source.stem}-instant.toml"
     path.write_text(text)
     return path
 
@@ -96,7 +110,7 @@ class Spy:
         data = self._port.read(size)
         if self._grbl:
             self._replies.extend(data)
-            *lines, rest = bytes(self._replies).split(b"\r\n")
+            *lines, rest = re.split(rb"[\r\n]", bytes(self._replies))  # "ok\r" is a whole answer
             self._replies[:] = rest
             for line in lines:
                 if (line == b"ok" or line.startswith(b"error:")) and self._lines:

@@ -32,7 +32,7 @@ from foldfab.errors import FoldfabError
 from foldfab.programs.hpgl import write_hpgl
 from foldfab.fabrication.plan import Pass, PlotPlan
 from foldfab.programs.languages import write_program
-from foldfab.plotting.engines.base import StreamStopped
+from foldfab.plotting.engines.base import CHECK_EVERY, StreamStopped
 from foldfab.plotting.engines.grbl import GRBL_RX_BUFFER
 from foldfab.plotting.stream import stream
 from foldfab.plotting.transport import open_port
@@ -124,9 +124,10 @@ def test_no_inline_markers_where_the_link_is_the_bottleneck(tmp_path):
     port = sim_port(device, baudrate=9600)
     run(port, program, device)
     marked = marker_offsets(bytes(port.written), program.encode())
-    # only checkpoints: the setup, every 512 bytes, the end (markers would cost 3 bytes a stroke)
-    assert len(marked) <= len(program.encode()) // 512 + 3
-    assert np.all(np.diff(marked[1:-1]) >= 400)  # (the last one ends the program)
+    # only the checkpoints' (the setup, the end) and the window's: one every half window (256 bytes),
+    # so the window moves on without a round trip (markers would cost 3 bytes a stroke)
+    assert len(marked) <= len(program.encode()) // (CHECK_EVERY // 2) + 3
+    assert np.all(np.diff(marked[1:-1]) >= CHECK_EVERY // 2)  # (the last one ends the program)
 
 
 @pytest.mark.parametrize("name", DEVICE_NAMES)

@@ -239,23 +239,35 @@ class Sender:
         """Write bytes (never an int: pyserial would send that many zero bytes)."""
         if not isinstance(data, bytes):
             raise TypeError(f"write bytes, not {type(data).__name__}")
-        start = max(time.monotonic(), self.wire_free)
+        start = max(self.clock(), self.wire_free)
         self.port.write(data)
-        self.wire_free = max(start + len(data) * self.char_time, time.monotonic())
+        self.wire_free = max(start + len(data) * self.char_time, self.clock())
 
     def on_wire(self) -> float:
-        """Bytes written that, at the line rate, are still on their way."""
-        return max(self.wire_free - time.monotonic(), 0.0) / self.char_time
+        """Bytes written that, at the line rate, are still on their way (on the plotter's clock,
+        which paces the wire: a simulator's in fast or instant time)."""
+        return max(self.wire_free - self.clock(), 0.0) / self.char_time
+
+    def let_pass(self, seconds: float) -> None:
+        """Let up to ``seconds`` (at most :data:`POLL`) pass on the plotter's clock: a blocking read
+        with that timeout, so a reply or a handshake byte ends it at once; no spinning."""
+        self.check_cancel()
+        if seconds <= 0:
+            return
+        self.port.timeout = min(seconds, POLL)
+        try:
+            self.inbox += self.filter(self.port.read(1))
+        finally:
+            self.port.timeout = POLL
 
     def receive(self, wait: bool) -> None:
         """Move incoming bytes to the inbox; with ``wait``, block up to POLL for the first."""
         self.check_cancel()
-        waiting = self.port.in_waiting
-        if waiting or wait:
-            data = self.port.read(max(waiting, 1))
-            if data and self.port.in_waiting:
-                data += self.port.read(self.port.in_waiting)
-            self.inbox += self.filter(data)
+        data = self.port.read(1) if wait else b""  # returns at once if a byte is there
+        waiting = self.port.in_waiting if data or not wait else 0  # one look, no polling loop
+        if waiting:
+            data += self.port.read(waiting)
+        self.inbox += self.filter(data)
 
     def filter(self, data: bytes) -> bytes:
         """Handle bytes that are not replies (XON/XOFF); return the rest."""

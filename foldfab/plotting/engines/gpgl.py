@@ -116,17 +116,8 @@ class GPGLSender(Sender):
                 raise _Fault(f"{self.device.name} stalled: still moving {limit:.0f} s after the last sign of "
                              "progress (jammed, or paused on its panel?)")
             elapsed = self.clock() - start
-            self.wait(FINE_POLL if 0.8 * expect <= elapsed <= 2 * expect + POLL else POLL)
+            self.let_pass(FINE_POLL if 0.8 * expect <= elapsed <= 2 * expect + POLL else POLL)
             self.tick()
-
-    def wait(self, seconds: float) -> None:
-        """Let ``seconds`` pass on the cutter's clock: a blocking read with that timeout, no spinning."""
-        self.check_cancel()
-        self.port.timeout = seconds
-        try:
-            self.inbox += self.port.read(1)  # nothing is expected: a late answer at most
-        finally:
-            self.port.timeout = POLL
 
     def status(self, timeout: float) -> str:
         """Ask ``ESC 0x05`` and return the answer without its ETX (the answers of earlier requests

@@ -181,7 +181,7 @@ class GrblSender(Sender):
             self.last_query, self.querying, self.query_answered = now, True, self.answered
             if self.unanswered_since is None:
                 self.unanswered_since = now
-        elif (self.unanswered_since is not None and not self.stopping
+        elif (self.unanswered_since is not None and not self.stopping and not self.inbox  # (a reply arriving)
               and now - self.unanswered_since > self.stall_timeout):
             raise _Fault(f"GRBL stopped answering: no status report for {self.stall_timeout:g} s "
                          "(hung, or the cable is loose?)")

@@ -7,6 +7,9 @@ past a pause:
   holds where no driver does it (sockets, pseudo-terminals, ``--no-xonxoff``); writes
   are paced at the line rate so that at most :attr:`HPGLSender.ahead` bytes are on the
   wire when XOFF comes (a pseudo-terminal's kernel buffer would otherwise hold kilobytes).
+  The pace is the plotter's clock, awaited in a blocking read (an XOFF or an answer ends
+  it).  Where the port's driver obeys the handshake, :data:`DRIVER_LEAD` of line time is
+  written ahead, so a host that runs late (a busy machine) does not leave the link idle.
 * ``rtscts``: ``port.cts`` is checked before every write (same pacing).
 * ``escb``: ``ESC.B`` asks the free buffer space; at most that much is sent.
 * ``none``: no handshake at all: at most one buffer is sent between two checkpoints.
@@ -23,7 +26,9 @@ another pen state) is line noise that kept the program valid (a digit turned int
 or lost steps, and stops the job like a plotter error; a resume draws again from the last
 check that agreed.  Checkpoints come at pauses, at the end and every :data:`CHECK_EVERY` bytes
 (at most a buffer), so an error is found within that window and the executed count is
-exact there; with ``escb`` the buffer is first drained by ``ESC.B`` polls, which are
+exact there; half a window after the last acknowledged byte an inline marker (below) is
+written if none is on its way, and its answer, read while the rest of the window goes out,
+moves the window on, so the link does not wait for the checkpoint's round trip; with ``escb`` the buffer is first drained by ``ESC.B`` polls, which are
 answered at once, so a hung plotter shows within the stall timeout. Between checkpoints
 the executed count is conservative: ``ESC.B`` gives it exactly at each query; the other
 modes assume a full buffer and the bytes on the wire are still to execute.  After a
@@ -68,6 +73,10 @@ LEAD = 1.0
 hold beyond the stroke it is drawing.  Markers tell the moment each stroke is done, so a
 second keeps it busy, and a stop (Ctrl-C, a host that dies) leaves little in its buffer."""
 
+DRIVER_LEAD = 0.5
+"""HP-GL with a driver that obeys the handshake: seconds of line time the sender keeps written
+ahead of the wire (at most a buffer)."""
+
 HPGL_ERRORS = {
     1: "instruction not recognized",
     2: "wrong number of parameters",
@@ -97,6 +106,9 @@ class HPGLSender(Sender):
         self.driver_flow = bool(self.port.xonxoff if self.flow == "xonxoff" else
                                 self.port.rtscts if self.flow == "rtscts" else False)
         """The port's driver obeys the handshake (pyserial xonxoff/rtscts)."""
+        if self.driver_flow:  # it holds the bytes when told to stop: the lead need not fit the
+            # plotter's headroom, only outlast the host's own delays (a busy machine), up to a buffer
+            self.ahead = max(self.ahead, min(self.size, round(DRIVER_LEAD / self.char_time)))
         self.cts_line = True  # the port can report CTS
         self.check_every = min(self.size, CHECK_EVERY)
         self.checked = 0  # program bytes executed at the last checkpoint
@@ -219,6 +231,9 @@ class HPGLSender(Sender):
                     self.await_marks(lambda: self.repeats_allow() > self.sent)
                     continue
                 room = min(room, allowed - self.sent)
+            half = self.checked + self.check_every // 2
+            if not self.marks and self.sent < half:  # a window marker goes there (see window_marker)
+                room = min(room, half - self.sent)
             # as many whole commands as fit; a command longer than the room goes in pieces
             index = bisect.bisect_right(self.ends, min(self.sent + room, stop)) - 1
             end = self.ends[index] if index >= 0 and self.ends[index] > self.sent else self.sent + room
@@ -231,7 +246,7 @@ class HPGLSender(Sender):
                     break  # a command is never left half sent (a stop appends PU;)
                 rest = self.command_end(self.sent, stop) - self.sent
                 end = self.sent + min(self.room(rest), rest)
-            if self.sent in self.marked:  # a position check may ride on it when due (no drain)
+            if self.sent in self.marked or self.window_marker(stop):  # a position check may ride on it
                 expected = self.expected_position(self.sent) if self.position_due() else None
                 marker = b"OE;OA;" if expected is not None else b"OE;"
                 self.asked = self.sent if expected is not None else self.asked
@@ -241,6 +256,12 @@ class HPGLSender(Sender):
                 self.marks.append((self.sent, self.buffered, expected))
             self.update_acked()
             self.tick()
+
+    def window_marker(self, stop: int) -> bool:
+        """An inline marker is due half a checkpoint window after the last acknowledged byte, if
+        none is on its way (see the module docstring)."""
+        return (not self.marks and self.sent < stop and self.data[self.sent - 1] == ord(";")
+                and self.sent - self.checked >= self.check_every // 2)
 
     def room(self, need: int) -> int:
         """Block until at least ``need`` bytes may be sent; return how many may."""
@@ -267,7 +288,7 @@ class HPGLSender(Sender):
                 on_wire = self.on_wire()
                 if on_wire <= self.ahead - want:
                     return int(self.ahead - on_wire)
-                self.sleep((on_wire - (self.ahead - want)) * self.char_time)
+                self.let_pass((on_wire - (self.ahead - want)) * self.char_time)
                 continue
             limit = self.patience(self.acked, self.sent + self.ahead)
             if self.stalled(limit):
@@ -290,14 +311,6 @@ class HPGLSender(Sender):
                              "flow control (--rtscts) so that its driver holds the data") from None
             self.cts_line = False
             return True
-
-    def sleep(self, seconds: float) -> None:
-        """Sleep on the cancel event (wakes at once on a cancel)."""
-        self.check_cancel()
-        if seconds > 0 and not self.stopping:
-            self.cancel.wait(min(seconds, POLL))
-        elif seconds > 0:
-            time.sleep(min(seconds, POLL))
 
     def escb_room(self, need: int) -> int:
         """Ask ``ESC.B`` until the plotter reports at least ``need`` bytes free."""

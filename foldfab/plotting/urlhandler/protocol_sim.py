@@ -15,11 +15,18 @@ its place (in ``port.simulator`` and the session; the old one keeps what it drew
 The port's settings act as a host driver's would: ``baudrate``, ``bytesize``,
 ``parity`` and ``stopbits`` set the wire time; with ``xonxoff`` the driver stops
 sending on XOFF and swallows XON/XOFF; with ``rtscts`` it stops while CTS is low.
-``write`` blocks (virtually) until its last byte has arrived; with ``write_timeout``
-it raises :class:`~serial.SerialTimeoutException` when flow control holds it longer.
+In ``real`` and ``fast`` time the port has a driver's transmit buffer
+(:data:`DRIVER_BUFFER` bytes, as a Linux serial port): ``write`` returns once what is
+left of its bytes fits in it, and the wire carries them on the plotter's clock whether the
+host runs or not (every later call on the port delivers what has arrived meanwhile, in
+order, at the times it arrived), so a host busy elsewhere costs the link nothing while
+its driver holds bytes; ``flush`` waits until they are through, ``out_waiting`` counts
+them, ``reset_output_buffer`` drops them and ``close`` lets them go out.  In ``instant``
+time ``write`` returns when its last byte has arrived.  With ``write_timeout`` it raises
+:class:`~serial.SerialTimeoutException` when flow control holds it longer.
 In ``instant`` time a poll that finds nothing (``in_waiting``, ``cts``, ``read``
 with ``timeout=0``) lets ``POLL_STEP`` of virtual time pass, as a polling host's
-sleep would; instant time assumes one thread drives the port (real and fast time
+sleep would, once ``FREE_LOOKS`` polls at the same moment found nothing; instant time assumes one thread drives the port (real and fast time
 are thread-safe: a reader and a writer thread may share it).  Timeouts are virtual
 seconds.  ``inter_byte_timeout``, RTS, DTR and breaks are not simulated.  After
 ``disconnect_after`` bytes every call raises :class:`~serial.SerialException`, as
@@ -41,10 +48,17 @@ if TYPE_CHECKING:
     from foldfab.sim.device import Simulator
 
 POLL_STEP = 0.01
-"""Virtual seconds an empty poll lets pass in ``instant`` time."""
+"""Virtual seconds an empty poll lets pass in ``instant`` time (see :data:`FREE_LOOKS`)."""
+FREE_LOOKS = 2
+"""Empty polls at one moment of ``instant`` time that let no time pass: a host that looks
+before it acts costs the plotter nothing, as on a real port; one that keeps looking is
+sleeping between its looks, and each further look lets :data:`POLL_STEP` pass."""
 _SESSIONS: dict[str, Simulator] = {}
 """Simulators by ``session`` option: a later open plugs into the same plotter."""
 _SESSIONS_LOCK = threading.Lock()
+DRIVER_BUFFER = 4096
+"""Bytes the simulated host driver holds for the wire (Linux keeps a page per serial port,
+for UARTs and USB adapters alike); a write blocks while more than this is still to go."""
 WALL_STEP = 0.002
 """Longest wall-clock sleep of a blocking call in real and fast time, so that a reply
 caused by another thread's write is seen at once (ports are shared by a reader and a
@@ -70,6 +84,10 @@ class Serial(SerialBase):
         self.profile = None  # a DeviceProfile for "sim://" without a name
         self._cancel = threading.Event()
         self._lock = threading.RLock()
+        self._pending = bytearray()  # written, not yet through the wire (real and fast time)
+        self._polled_at: float | None = None  # instant time: when a poll last found nothing
+        self._looks = 0  # how many found nothing then
+        self._pending_start = 0.0  # virtual time they were written at (they follow the wire's last byte)
         super().__init__(*args, **kwargs)
 
     def open(self) -> None:
@@ -119,7 +137,12 @@ class Serial(SerialBase):
             return simulator
 
     def close(self) -> None:
-        self.is_open = False
+        """Close the port; the bytes the driver still holds go out (as a driver drains at close)."""
+        with self._lock:
+            if self.is_open and self._pending and not self.simulator.disconnected:
+                self.simulator.transmit(bytes(self._pending), self._pending_start)
+            self._pending.clear()
+            self.is_open = False
         self._cancel.set()
 
     def _reconfigure_port(self) -> None:
@@ -140,17 +163,28 @@ class Serial(SerialBase):
         if not self.is_open:
             raise PortNotOpenError()
         sim = self.simulator
+        now = sim.clock.now()
+        if self._pending and not sim.disconnected:  # the wire carried them meanwhile, before anything else
+            sent, _ = sim.transmit(bytes(self._pending), self._pending_start, now)
+            del self._pending[:sent]
         if sim.disconnected:
+            self._pending.clear()
             raise SerialException(f"{self._port}: device disconnected (cable pulled after "
                                   f"{sim.stats.bytes_received} bytes)")
-        sim.advance(sim.clock.now())
+        sim.advance(now)
         return sim
 
     def _poll(self, sim: Simulator) -> None:
-        """An empty poll: in instant time, let a moment pass."""
-        if sim.clock.rate is None:
-            sim.clock.sleep_until(sim.clock.now() + POLL_STEP)
-            sim.advance(sim.clock.now())
+        """An empty poll: in instant time, let a moment pass if the host keeps looking (see FREE_LOOKS)."""
+        clock = sim.clock
+        if clock.rate is None:
+            if self._polled_at != clock.now():
+                self._polled_at, self._looks = clock.now(), 0
+            self._looks += 1
+            if self._looks > FREE_LOOKS:
+                clock.sleep_until(clock.now() + POLL_STEP)
+                sim.advance(clock.now())
+                self._polled_at, self._looks = clock.now(), 0
 
     def _wait(self, sim: Simulator, deadline: float | None, ready: Callable[[], bool]) -> None:
         """Block until ``ready()``, the virtual ``deadline``, or a moment (see WALL_STEP)."""
@@ -206,17 +240,14 @@ class Serial(SerialBase):
             clock = sim.clock
             start = clock.now()
             deadline = None if self._write_timeout is None else start + self._write_timeout
+        if clock.rate is not None:  # real and fast time: into the driver's buffer
+            return self._queue(sim, data, start, deadline)
         done = 0
         while done < len(data) and not self._cancel.is_set():
             with self._lock:
                 self._live()
-                if clock.rate is None:  # instant: the whole write at once
-                    sent, until = sim.transmit(data[done:], start, deadline)
-                    clock.sleep_until(until)
-                else:  # real time: what the wire has carried by now
-                    now = clock.now()
-                    sent, _ = sim.transmit(data[done:], start, now if deadline is None else
-                                           min(now, deadline))
+                sent, until = sim.transmit(data[done:], start, deadline)  # instant: the whole write at once
+                clock.sleep_until(until)
                 done += sent
                 if sim.disconnected and done < len(data):
                     self._live()  # raises
@@ -226,17 +257,48 @@ class Serial(SerialBase):
                 self._wait(sim, deadline, lambda: not sim.host_stopped())
         return done
 
+    def _queue(self, sim: Simulator, data: bytes, start: float, deadline: float | None) -> int:
+        """Add ``data`` to the driver's buffer; block while more than :data:`DRIVER_BUFFER` bytes
+        are still to go.  Returns the bytes taken (fewer after a cancel or a write timeout)."""
+        with self._lock:
+            if not self._pending:
+                self._pending_start = start
+            self._pending += data
+        while True:
+            with self._lock:
+                excess = len(self._pending) - DRIVER_BUFFER
+                if excess <= 0:
+                    return len(data)
+                if self._cancel.is_set() or (deadline is not None and sim.clock.now() >= deadline):
+                    del self._pending[DRIVER_BUFFER:]
+                    if self._cancel.is_set():
+                        return len(data) - excess
+                    raise SerialTimeoutException("Write timeout")
+            self._wait(sim, deadline, lambda: len(self._pending) <= DRIVER_BUFFER)
+
     def flush(self) -> None:
-        """Everything written has arrived already (``write`` returns when it has)."""
-        self._live()
+        """Wait until the bytes the driver holds are through the wire (or the port is closed)."""
+        with self._lock:
+            sim = self._live()
+        while self._pending and not self._cancel.is_set():
+            self._wait(sim, None, lambda: not self._pending)
+
+    @property
+    def out_waiting(self) -> int:
+        """Bytes the driver holds, not through the wire yet."""
+        with self._lock:
+            self._live()
+            return len(self._pending)
 
     def reset_input_buffer(self) -> None:
         with self._lock:
             self._live().discard_arrived()
 
     def reset_output_buffer(self) -> None:
+        """Drop the bytes the driver still holds."""
         with self._lock:
             self._live()
+            self._pending.clear()
 
     def cancel_read(self) -> None:
         self._cancel.set()

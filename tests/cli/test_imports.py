@@ -1,0 +1,62 @@
+"""Each command loads only what it uses: the parser reads no library, and a command group that
+needs no plotting, queue store, mesh or PDF library never starts one (their start-up is most of
+what a short command costs).  Run in a fresh interpreter per command, as the console script is."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from helpers import ROOT
+
+PLOTTING = {"vpype", "scipy", "shapely"}
+"""Sorting and merging the strokes of a program."""
+STORE = {"sqlite3", "psycopg"}
+"""A queue store."""
+LINK = {"serial", "usb"}
+"""A port to a plotter."""
+MESH, PDF = {"trimesh"}, {"reportlab"}
+PARSER_ONLY = PLOTTING | STORE | LINK | MESH | PDF | {"numpy", "secrets", "socket"}
+"""What reading the parser (``--help`` of any command) loads none of."""
+JOB = str(ROOT / "jobs" / "hexagon-fig8a.toml")
+DIAMOND = str(ROOT / "jobs" / "diamond-fig9.toml")
+
+
+def loaded(argv: list[str], watched: set[str], cwd) -> list[str]:
+    """The modules of ``watched`` in ``sys.modules`` after ``foldfab ARGV`` (which must succeed)."""
+    code = ("import sys, runpy\nsys.argv = ['foldfab', *sys.argv[1:]]\n"
+            "try:\n    runpy.run_module('foldfab', run_name='__main__')\nexcept SystemExit as exc:\n"
+            "    assert not exc.code, exc.code\n"
+            f"watched = {sorted(watched)!r}\n"
+            "print(sorted(m for m in watched if m in sys.modules), file=sys.stderr)\n")
+    result = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, cwd=cwd,
+                            timeout=300)
+    assert result.returncode == 0, result.stderr
+    return eval(result.stderr.strip().splitlines()[-1])  # a list of names printed by the child
+
+
+@pytest.mark.parametrize("argv", [["--help"], *([group, "--help"] for group in
+                                  ("design", "export", "preview", "plot", "print", "sim", "studio", "queue",
+                                   "devices", "ports")),
+                                  ["queue", "add", "--help"], ["queue", "list", "--help"], ["queue", "run", "--help"]])
+def test_help_reads_the_parser_only(argv, tmp_path):
+    assert loaded(argv, PARSER_ONLY, tmp_path) == []
+
+
+@pytest.mark.parametrize("argv, heavy", [
+    (["design", JOB], PLOTTING | STORE | LINK | MESH | PDF),
+    (["design", JOB, "--mesh", "{tmp}/h.glb"], PLOTTING - {"scipy", "shapely"} | STORE | LINK | PDF),
+    (["export", JOB, "--device", "hp7475a", "-o", "{tmp}/h.plt"], STORE | LINK | MESH | PDF),
+    (["preview", JOB, "--device", "hp7475a", "-o", "{tmp}/h.svg"], STORE | LINK | MESH | PDF),
+    (["print", JOB, "-o", "{tmp}/h.pdf"], PLOTTING | STORE | LINK | MESH),
+    (["plot", DIAMOND, "--device", "hp7475a", "--port", "sim://?time=instant", "--yes"], STORE | MESH | PDF),
+    (["queue", "list", "--queue", "{tmp}/q.sqlite3"], PLOTTING | LINK | MESH | PDF | {"numpy"}),
+    (["devices"], PLOTTING | STORE | LINK | MESH | PDF | {"numpy"}),
+    (["ports"], PLOTTING | STORE | MESH | PDF),
+])
+def test_a_command_imports_only_what_it_uses(argv, heavy, tmp_path):
+    """``design`` builds geometry only; ``print`` draws no program; ``plot`` keeps no queue; the
+    queue's list, ``devices`` and ``ports`` compute nothing."""
+    assert loaded([arg.format(tmp=tmp_path) for arg in argv], heavy, tmp_path) == []
