@@ -1,9 +1,9 @@
-"""Pen-up travel optimization with vpype's own operations, layer by layer.
+"""Pen-up travel optimization, layer by layer, on vpype's data model and operations.
 
-Within each layer: ``linemerge`` (join lines whose ends meet; skipped when no two
-ends are that close, since scoring has chained the creases already), ``linesort``
-(greedy, or with ``--two-opt``; a layer of many thousand lines tile by tile),
-``linesimplify`` within the device's resolution,
+Within each layer: vpype's ``linemerge`` (join lines whose ends meet; skipped when no two
+ends are that close, since scoring has chained the creases already), a greedy nearest-end
+sort of the whole layer (:mod:`foldfab.fabrication.sort`; with ``two-opt``, then vpype's
+``linesort --two-opt`` window by window), vpype's ``linesimplify`` within the device's resolution,
 closed outlines relooped to start where the pen arrives, and of the sorted order
 and its reverse the one that enters and leaves the layer by less travel (its last
 line turned round if it then ends nearer the next layer or the park position).  Layers
@@ -102,27 +102,70 @@ def _vpype_operation(name: str):
 
 
 def _sort(lines: list[np.ndarray], two_opt: bool, pen: complex) -> list[np.ndarray]:
-    """``lines`` in the order vpype's ``linesort`` (``two_opt``: with ``--two-opt``) gives
-    them, from the line nearest ``pen`` on (vpype's sort starts from the first line it is given).
+    """``lines`` in greedy nearest-end order from ``pen``, each either way round
+    (:func:`foldfab.fabrication.sort.nearest_order`, over the whole layer, stragglers moved); ``two_opt``: then
+    improved by vpype's ``linesort --two-opt`` window by window (:func:`_two_opt`)."""
+    from foldfab.fabrication.sort import nearest_order
 
-    A layer of more than :data:`TILE_LINES` lines is sorted tile by tile (:func:`_tiles`),
-    each tile from where the pen left the one before.  vpype's line index rebuilds its
-    KD-tree over every remaining line whenever the pen's neighbourhood runs dry, so one
-    sort of a 50,000-line crease layer takes 6 s and in tiles 2.5 s; and a greedy sort kept
-    within a tile leaves no stragglers to come back for across the sheet, so on crease
-    patterns the tiles mostly travel less too (the 12.6 m roll's valleys: 12.5 m against
-    19.4 m; its mountains, long zigzags among short pieces, 43.3 m against 38.3 m).
-    """
+    lines = [line for line in lines if len(line)]
+    order, flipped = nearest_order(np.array([line[0] for line in lines]), np.array([line[-1] for line in lines]), pen)
+    out = [lines[i][::-1] if turn else lines[i] for i, turn in zip(order.tolist(), flipped.tolist())]
+    if not two_opt:
+        return out
+    out = _two_opt(out, pen)
+    if 1 < len(lines) <= TWO_OPT_LINES:
+        # two-opt ends in a local optimum, and from vpype's own greedy order over the lines as they
+        # came it is at times a better one (the lantern's outlines: 1,430 mm against 1,769 mm)
+        theirs = _vpype_operation("linesort")(_collection(_nearest_first(lines, pen)), no_flip=False, two_opt=True,
+                                              passes=SORT_PASSES).lines
+        if _path(theirs, pen, None) < _path(out, pen, None):
+            out = theirs
+    return out
+
+
+TWO_OPT_LINES = 2000
+"""Lines per window of :func:`_two_opt` (vpype's two-opt takes time quadratic in the lines it is given)."""
+
+SORT_PASSES = 250
+"""Passes of vpype's two-opt sort at most (the default of its ``linesort --passes``)."""
+
+
+def _two_opt(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
+    """``lines`` (in drawing order from ``pen``) improved by vpype's ``linesort --two-opt``, run on
+    consecutive windows of :data:`TWO_OPT_LINES` lines, each from where the pen left the one
+    before.  A window's new order is kept only if the way into it, through it and on to the
+    next window's first line is shorter than before, so the whole never travels more than
+    ``lines`` (one two-opt over a 50,000-line layer had not finished after 15 minutes)."""
     linesort = _vpype_operation("linesort")
     out: list[np.ndarray] = []
-    for tile in _tiles(lines, pen):
-        chosen = [lines[i] for i in tile]
-        if len(chosen) > 1:
-            chosen = linesort(_collection(_nearest_first(chosen, pen)), no_flip=False, two_opt=two_opt,
-                              passes=SORT_PASSES).lines
-        out.extend(chosen)
-        pen = out[-1][-1] if out else pen
+    for begin in range(0, len(lines), TWO_OPT_LINES):
+        window = lines[begin:begin + TWO_OPT_LINES]
+        after = lines[begin + TWO_OPT_LINES][0] if begin + TWO_OPT_LINES < len(lines) else None
+        if len(window) > 1:
+            improved = linesort(_collection(window), no_flip=False, two_opt=True, passes=SORT_PASSES).lines
+            if _path(improved, pen, after) < _path(window, pen, after):
+                window = improved
+        out.extend(window)
+        pen = out[-1][-1]
     return out
+
+
+def _nearest_first(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
+    """``lines`` with the one whose end is nearest ``pen`` moved first (and turned to start there)."""
+    starts = np.array([line[0] for line in lines])
+    ends = np.array([line[-1] for line in lines])
+    dist = np.minimum(np.abs(starts - pen), np.abs(ends - pen))
+    i = int(np.argmin(dist))
+    first = lines[i] if abs(starts[i] - pen) <= abs(ends[i] - pen) else lines[i][::-1]
+    return [first, *lines[:i], *lines[i + 1:]]
+
+
+def _path(lines: list[np.ndarray], pen: complex, after: complex | None) -> float:
+    """Pen-up travel from ``pen`` through ``lines`` in order and on to ``after`` (None: nowhere)."""
+    starts = np.array([line[0] for line in lines])
+    ends = np.array([line[-1] for line in lines])
+    onward = 0.0 if after is None else abs(after - ends[-1])
+    return abs(starts[0] - pen) + float(np.abs(starts[1:] - ends[:-1]).sum()) + onward
 
 
 def _simplify(lines: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
@@ -170,54 +213,6 @@ def _kept_whole(lines: list[np.ndarray], tolerance: float) -> np.ndarray:
             far &= (length > 0) & (cross > (1.001 * tolerance + 1e-9) * length)
         whole[chosen] = far
     return whole
-
-
-SORT_PASSES = 250
-"""Passes of vpype's two-opt sort at most (the default of its ``linesort --passes``)."""
-
-
-TILE_LINES = 2000
-"""Lines per tile, on average, when a layer is sorted in tiles (see :func:`_sort`)."""
-
-
-def _tiles(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
-    """Indices of ``lines`` by tile, tiles in the order to visit them.
-
-    Tiles are square cells of a grid over the lines' midpoints, as many as it takes for
-    about :data:`TILE_LINES` lines per cell (but never more than four cells per
-    :data:`TILE_LINES` lines, however thin the layer).  The grid runs in bands across its
-    longer side, visited in serpentine order from the end nearer ``pen``.  One tile for
-    :data:`TILE_LINES` lines or fewer.
-    """
-    count = -(-len(lines) // TILE_LINES)
-    if count <= 1:
-        return [np.arange(len(lines))]
-    mid = np.array([(line[0] + line[-1]) / 2 for line in lines])
-    xy = np.column_stack([mid.real, mid.imag])
-    low = xy.min(axis=0)
-    size = np.maximum(xy.max(axis=0) - low, 1e-9)
-    along = 0 if size[0] >= size[1] else 1
-    bands = min(4 * count, max(1, round(float(np.sqrt(count * size[along] / size[1 - along])))))
-    across = -(-count // bands)
-    cell = ((xy - low) / size).T
-    band = np.minimum((cell[along] * bands).astype(int), bands - 1)
-    step = np.minimum((cell[1 - along] * across).astype(int), across - 1)
-    key = band * across + np.where(band % 2 == 0, step, across - 1 - step)
-    order = np.argsort(key, kind="stable")
-    tiles = np.split(order, np.flatnonzero(np.diff(key[order])) + 1)
-    if abs(mid[tiles[-1]].mean() - pen) < abs(mid[tiles[0]].mean() - pen):
-        tiles.reverse()
-    return tiles
-
-
-def _nearest_first(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
-    """``lines`` with the one whose end is nearest ``pen`` moved first (and turned to start there)."""
-    starts = np.array([line[0] for line in lines])
-    ends = np.array([line[-1] for line in lines])
-    dist = np.minimum(np.abs(starts - pen), np.abs(ends - pen))
-    i = int(np.argmin(dist))
-    first = lines[i] if abs(starts[i] - pen) <= abs(ends[i] - pen) else lines[i][::-1]
-    return [first, *lines[:i], *lines[i + 1:]]
 
 
 def _entries(lines, tolerance: float) -> np.ndarray:
