@@ -102,8 +102,8 @@ def _vpype_operation(name: str):
 
 
 def _sort(lines: list[np.ndarray], two_opt: bool, pen: complex) -> list[np.ndarray]:
-    """``lines`` in greedy nearest-end order from ``pen``, each either way round
-    (:func:`foldfab.fabrication.sort.nearest_order`, over the whole layer, stragglers moved); ``two_opt``: then
+    """``lines`` in greedy nearest-end order from ``pen`` over the whole layer, each either way
+    round, stragglers moved (:func:`foldfab.fabrication.sort.nearest_order`); ``two_opt``: then
     improved by vpype's ``linesort --two-opt`` window by window (:func:`_two_opt`)."""
     from foldfab.fabrication.sort import nearest_order
 
@@ -118,7 +118,7 @@ def _sort(lines: list[np.ndarray], two_opt: bool, pen: complex) -> list[np.ndarr
         # came it is at times a better one (the lantern's outlines: 1,430 mm against 1,769 mm)
         theirs = _vpype_operation("linesort")(_collection(_nearest_first(lines, pen)), no_flip=False, two_opt=True,
                                               passes=SORT_PASSES).lines
-        if _path(theirs, pen, None) < _path(out, pen, None):
+        if _entry_exit(theirs, pen, None) < _entry_exit(out, pen, None):
             out = theirs
     return out
 
@@ -140,10 +140,10 @@ def _two_opt(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
     out: list[np.ndarray] = []
     for begin in range(0, len(lines), TWO_OPT_LINES):
         window = lines[begin:begin + TWO_OPT_LINES]
-        after = lines[begin + TWO_OPT_LINES][0] if begin + TWO_OPT_LINES < len(lines) else None
+        after = _Onward(np.array([lines[begin + TWO_OPT_LINES][0]])) if begin + TWO_OPT_LINES < len(lines) else None
         if len(window) > 1:
             improved = linesort(_collection(window), no_flip=False, two_opt=True, passes=SORT_PASSES).lines
-            if _path(improved, pen, after) < _path(window, pen, after):
+            if _entry_exit(improved, pen, after) < _entry_exit(window, pen, after):
                 window = improved
         out.extend(window)
         pen = out[-1][-1]
@@ -158,14 +158,6 @@ def _nearest_first(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
     i = int(np.argmin(dist))
     first = lines[i] if abs(starts[i] - pen) <= abs(ends[i] - pen) else lines[i][::-1]
     return [first, *lines[:i], *lines[i + 1:]]
-
-
-def _path(lines: list[np.ndarray], pen: complex, after: complex | None) -> float:
-    """Pen-up travel from ``pen`` through ``lines`` in order and on to ``after`` (None: nowhere)."""
-    starts = np.array([line[0] for line in lines])
-    ends = np.array([line[-1] for line in lines])
-    onward = 0.0 if after is None else abs(after - ends[-1])
-    return abs(starts[0] - pen) + float(np.abs(starts[1:] - ends[:-1]).sum()) + onward
 
 
 def _simplify(lines: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
@@ -266,15 +258,15 @@ def _closed(line: np.ndarray, tolerance: float) -> bool:
     return len(line) > 3 and abs(line[0] - line[-1]) <= tolerance
 
 
-def _entry_exit(lines: list[np.ndarray], pen: complex, onward: _Onward) -> float:
+def _entry_exit(lines: list[np.ndarray], pen: complex, onward: _Onward | None) -> float:
     """Travel from ``pen`` into ``lines``, inside them (reloop and the last line's turn change
-    it) and from their end on (``onward``)."""
+    it) and from their end on (``onward``; None: nowhere)."""
     if not lines:
         return 0.0
     starts = np.array([line[0] for line in lines])
     ends = np.array([line[-1] for line in lines])
     inside = float(np.abs(starts[1:] - ends[:-1]).sum())
-    return abs(starts[0] - pen) + inside + onward.cost(ends[-1])
+    return abs(starts[0] - pen) + inside + (0.0 if onward is None else onward.cost(ends[-1]))
 
 
 def _end_towards(lines: list[np.ndarray], pen: complex, onward: _Onward) -> list[np.ndarray]:

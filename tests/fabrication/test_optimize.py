@@ -62,7 +62,8 @@ def test_two_opt_on_a_layer_of_one_window_is_no_worse_than_vpypes_from_the_neare
     rng = np.random.default_rng(5)
     lines = [np.array(p) for p in (rng.random((500, 2)) * 100) @ np.array([1, 1j])[:, None] + np.array([0, 3])]
     nearest = min(range(len(lines)), key=lambda i: min(abs(lines[i][0] - 7j), abs(lines[i][-1] - 7j)))
-    theirs = _run("linesort --two-opt" if two_opt else "linesort", [lines[nearest], *lines[:nearest], *lines[nearest + 1:]])
+    theirs = _run("linesort --two-opt" if two_opt else "linesort",
+                  [lines[nearest], *lines[:nearest], *lines[nearest + 1:]])
     ours = _sort(lines, two_opt, 7j)
     assert pen_up(ours, 7j) <= pen_up(theirs, 7j) + 1e-9
     if two_opt:
