@@ -19,14 +19,14 @@ import itertools
 
 import numpy as np
 
-from foldfab.fabrication.plan import Pause, PlotPlan, device_steps
+from foldfab.fabrication.plan import Pass, Pause, PlotPlan, device_steps
 
 METHODS = ("none", "greedy", "two-opt")
 
 
 def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex = 0j,
                   keep_vertices: frozenset[str] = frozenset(), tool_changer: bool = True) -> PlotPlan:
-    """A copy of ``plan`` whose layers are merged, sorted and simplified by vpype.
+    """A copy of ``plan`` whose layers are merged (vpype), sorted and simplified (vpype).
 
     ``resolution`` (mm) bounds how far merging and simplification may move a point;
     ``start`` is where the pen is before the first layer and after every pause (the
@@ -37,9 +37,24 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
     if method == "none":
         return plan
     two_opt = method == "two-opt"
+    steps = [step for _, step in device_steps(plan, tool_changer)]
+    best = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, mixed=True)
+    if not any(isinstance(step, Pass) and 1 < len(plan.document.layers[step.layer_id]) <= TWO_OPT_LINES
+               for step in steps):
+        return best
+    # Layer by layer, the order that arrives and leaves by least may leave the next layer a worse
+    # start (the star's valleys: 1 mm less, its mountains then 44 mm more): vpype's orders alone,
+    # as before foldfab had its own sort, make the other plan, and the one that travels less wins.
+    theirs = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, mixed=False)
+    return min((best, theirs), key=lambda p: travel(p, start, tool_changer)["total"])
+
+
+def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, start: complex,
+               keep_vertices: frozenset[str], mixed: bool) -> PlotPlan:
+    """:func:`optimize_plan` of ``plan`` as the device runs it (``steps``), each layer in the best of
+    :func:`_orders` (``mixed`` false: vpype's where it has one)."""
     doc = plan.document.clone()  # metadata only: layers are added below, in plan order
     pen = start
-    steps = [step for _, step in device_steps(plan, tool_changer)]
     # what the pen meets, in order: a layer to draw, or a pause (where the device parks it)
     meets = [step if isinstance(step, Pause) else plan.document.layers[step.layer_id] for step in steps]
     for index, step in enumerate(steps):
@@ -56,7 +71,7 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
         # A sorted order backwards (each line reversed) has the same inner travel: take the
         # order and direction that arrive and leave by less.
         candidates = [_end_towards(_reloop(order, pen, resolution, onward), pen, onward)
-                      for ordered in _orders(result, two_opt, pen)
+                      for ordered in _orders(result, two_opt, pen)[slice(None) if mixed else slice(-1, None)]
                       for order in (ordered, [line[::-1] for line in ordered[::-1]])]
         result = min(candidates, key=lambda c: _entry_exit(c, pen, onward))
         if step.name not in keep_vertices:  # last: simplifying keeps the ends of every line
