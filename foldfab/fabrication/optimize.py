@@ -71,7 +71,7 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
         # A sorted order backwards (each line reversed) has the same inner travel: take the
         # order and direction that arrive and leave by less.
         candidates = [_end_towards(_reloop(order, pen, resolution, onward), pen, onward)
-                      for ordered in _orders(result, two_opt, pen)[slice(None) if mixed else slice(-1, None)]
+                      for ordered in _choices(*_orders(result, two_opt, pen, onward.goal()), mixed)
                       for order in (ordered, [line[::-1] for line in ordered[::-1]])]
         result = min(candidates, key=lambda c: _entry_exit(c, pen, onward))
         if step.name not in keep_vertices:  # last: simplifying keeps the ends of every line
@@ -116,29 +116,46 @@ def _vpype_operation(name: str):
     return getattr(operations, name).callback.__wrapped__
 
 
-def _orders(lines: list[np.ndarray], two_opt: bool, pen: complex) -> list[list[np.ndarray]]:
-    """Orders of ``lines`` from ``pen`` to choose from, each line either way round.
+def _orders(lines: list[np.ndarray], two_opt: bool, pen: complex,
+            goal: complex | None) -> tuple[list[list[np.ndarray]], list[np.ndarray] | None]:
+    """Orders of ``lines`` from ``pen`` to choose from, each line either way round: foldfab's, and
+    vpype's (None: none).
 
-    First the greedy nearest-end order over the whole layer with its stragglers moved
-    (:func:`foldfab.fabrication.sort.nearest_order`; ``two_opt``: then improved window by window,
-    :func:`_two_opt`).  A layer of at most :data:`TWO_OPT_LINES` lines is also sorted by vpype's
+    foldfab's: the greedy nearest-end order over the whole layer with its stragglers moved
+    (:func:`foldfab.fabrication.sort.nearest_order`), and when the pen should end near ``goal``
+    (the park position, or the best way into a closed outline on the way there) the same order
+    from ``goal`` backwards; each, with ``two_opt``, improved window by window (:func:`_two_opt`).
+    A greedy walk depends much on where it starts: the roll's mountains, entered where its
+    valleys end, end 12 m from the park position; walked from there and drawn backwards,
+    they end beside it.  vpype's: on a layer of at most :data:`TWO_OPT_LINES` lines, its
     ``linesort`` (``--two-opt``) from the line nearest ``pen``, as foldfab did before it had its
-    own sort: a greedy walk depends on how ties are broken, and on symmetric crease patterns
+    own sort: a greedy walk depends on how ties are broken too, and on symmetric crease patterns
     full of them, and in two-opt's local optima, vpype's is at times the better (the star's
     mountains, 285 mm against 358 mm; the lantern's two-opt outlines, 1,430 mm against 1,769 mm).
     It costs little there and would cost seconds on a large layer."""
     from foldfab.fabrication.sort import nearest_order
 
     lines = [line for line in lines if len(line)]
-    order, flipped = nearest_order(np.array([line[0] for line in lines]), np.array([line[-1] for line in lines]), pen)
-    ours = [lines[i][::-1] if turn else lines[i] for i, turn in zip(order.tolist(), flipped.tolist())]
-    if two_opt:
-        ours = _two_opt(ours, pen)
+    starts, ends = np.array([line[0] for line in lines]), np.array([line[-1] for line in lines])
+    ours = []
+    for begin in [pen] if goal is None or len(lines) < 2 else [pen, goal]:
+        order, flipped = nearest_order(starts, ends, begin)
+        ordered = [lines[i][::-1] if turn else lines[i] for i, turn in zip(order.tolist(), flipped.tolist())]
+        if begin is not pen:
+            ordered = [line[::-1] for line in ordered[::-1]]
+        ours.append(_two_opt(ordered, pen) if two_opt else ordered)
     if not 1 < len(lines) <= TWO_OPT_LINES:
-        return [ours]
+        return ours, None
     theirs = _vpype_operation("linesort")(_collection(_nearest_first(lines, pen)), no_flip=False, two_opt=two_opt,
                                           passes=SORT_PASSES).lines
-    return [ours, theirs]
+    return ours, theirs
+
+
+def _choices(ours: list[list[np.ndarray]], theirs: list[np.ndarray] | None, mixed: bool) -> list[list[np.ndarray]]:
+    """The orders :func:`_optimized` chooses from: all (``mixed``), or vpype's where it has one."""
+    if theirs is None:
+        return ours
+    return [*ours, theirs] if mixed else [theirs]
 
 
 TWO_OPT_LINES = 2000
@@ -249,6 +266,12 @@ class _Onward:
 
     def cost(self, point: complex) -> float:
         return float(self.costs(np.array([point]))[0])
+
+    def goal(self) -> complex | None:
+        """Where best to leave for what follows, when that is one point or a closed loop."""
+        if self.extra is not None:
+            return complex(self.targets[int(np.argmin(self.extra))])
+        return complex(self.targets[0]) if len(self.targets) == 1 else None
 
 
 def _onward(later: list, park: complex, tolerance: float) -> _Onward:

@@ -45,34 +45,40 @@ line = st.lists(point, min_size=2, max_size=5).map(lambda p: np.array(p, dtype=c
 
 
 @settings(max_examples=60, deadline=None)
-@given(lines=st.lists(line, max_size=60), window=st.integers(2, 9), pen=point, two_opt=st.booleans())
+@given(lines=st.lists(line, max_size=60), window=st.integers(2, 9), pen=point, two_opt=st.booleans(),
+       goal=st.none() | point)
 def test_every_order_draws_every_line_once_as_it_was_or_reversed_and_two_opt_never_travels_more(
-        lines, window, pen, two_opt):
+        lines, window, pen, two_opt, goal):
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(optimize, "TWO_OPT_LINES", window)
-        orders = _orders(lines, two_opt, pen)
-        greedy = _orders(lines, False, pen)[0]
-    assert len(orders) == (2 if 1 < len(lines) <= window else 1)
-    for out in orders:
+        ours, theirs = _orders(lines, two_opt, pen, goal)
+        greedy = _orders(lines, False, pen, goal)[0]
+    assert (theirs is not None) == (1 < len(lines) <= window)
+    assert len(ours) == (1 if goal is None or len(lines) < 2 else 2)
+    for out in [*ours, *([theirs] if theirs is not None else [])]:
         assert sorted(map(canonical, out)) == sorted(map(canonical, lines))
-    if lines:
-        assert pen_up(orders[0], pen) <= pen_up(greedy, pen) + 1e-9
+    for mine, plain in zip(ours, greedy):
+        if lines:
+            assert pen_up(mine, pen) <= pen_up(plain, pen) + 1e-9
+    if len(greedy) == 2:  # walked from the goal and drawn backwards: backwards, the walk from the goal
+        backwards = [line[::-1] for line in greedy[1][::-1]]
+        assert pen_up(backwards, goal) == pytest.approx(pen_up(_orders(lines, False, goal, None)[0][0], goal))
 
 
 @pytest.mark.parametrize("two_opt", [False, True])
 def test_a_layer_of_one_window_may_also_take_exactly_vpypes_sort_from_the_nearest_line(two_opt):
     """vpype's ``linesort`` (``--two-opt``) from the line nearest the pen, foldfab's order before it
-    had its own sort, is the second candidate on a small layer; on a large one there is none."""
+    had its own sort, is a candidate on a small layer; on a large one there is none."""
     rng = np.random.default_rng(5)
     lines = [np.array(p) for p in (rng.random((500, 2)) * 100) @ np.array([1, 1j])[:, None] + np.array([0, 3])]
     nearest = min(range(len(lines)), key=lambda i: min(abs(lines[i][0] - 7j), abs(lines[i][-1] - 7j)))
     expected = _run("linesort --two-opt" if two_opt else "linesort",
                     [lines[nearest], *lines[:nearest], *lines[nearest + 1:]])
-    ours, theirs = _orders(lines, two_opt, 7j)
+    _, theirs = _orders(lines, two_opt, 7j, None)
     assert [a.tolist() for a in theirs] == [a.tolist() for a in expected]
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(optimize, "TWO_OPT_LINES", 499)
-        assert len(_orders(lines, two_opt, 7j)) == 1
+        assert _orders(lines, two_opt, 7j, None)[1] is None
 
 
 def test_simplify_sends_only_bent_lines_to_vpype_and_keeps_the_order():
@@ -196,3 +202,41 @@ def test_a_layer_after_a_pause_is_sorted_from_the_park_position():
             assert layers["between layers"] == 0
         else:
             assert "at pauses" not in layers
+
+
+def test_the_goal_of_a_layer_is_the_park_position_or_the_best_way_into_a_lone_outline():
+    import vpype as vp
+
+    park = 300 + 300j
+    assert _onward([], park, 0.025).goal() == park
+    assert _onward([vp.LineCollection([SQUARE])], park, 0.025).goal() == 100 + 100j  # the corner nearest the park
+    two = vp.LineCollection([np.array([0, 10]), np.array([50, 60])])
+    assert _onward([two], park, 0.025).goal() is None  # many ways in: the walk from the pen decides
+
+
+def test_the_last_layer_walked_back_from_the_park_position_travels_less():
+    """A long strip's valleys then mountains, the park position at one end (as on the roll): the
+    mountains walked greedily from where the valleys end finish far from the park position; also
+    walked from the park position and drawn backwards, the plan travels 17% less."""
+    import vpype as vp
+
+    from foldfab.devices import Tool
+    from foldfab.fabrication.optimize import optimize_plan, travel
+    from foldfab.fabrication.plan import Pass, PlotPlan
+
+    profile = ", ".join(f"[{0.3 * (i % 2)}, {0.5 * i:.2f}]" for i in range(201))
+    job = parse_job(f"[profile]\npoints = [{profile}]\n[trajectory]\ntemplate = \"regular\"\n"
+                    f"corners = 60\nradius = 2000\n")
+    pattern = build_design(job, check_penetration=False).crease_pattern
+    doc = vp.Document()
+    for layer, kind in enumerate("VM", start=1):
+        doc.add(vp.LineCollection(crease_lines(pattern, kind)), layer)
+    ends = np.array([line[[0, -1]] for line in doc.layers[1].lines]).ravel()
+    park = complex(ends.real.max(), ends.imag.max())
+    plan = PlotPlan(doc, [Pass(1, "valley", Tool(1, None, 10.0)), Pass(2, "mountain", Tool(1, None, 10.0))],
+                    (13000.0, 400.0))
+    walked_back = travel(optimize_plan(plan, "greedy", 0.025, park), park)["total"]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(_Onward, "goal", lambda self: None)
+        forward_only = travel(optimize_plan(plan, "greedy", 0.025, park), park)["total"]
+    assert walked_back < 0.9 * forward_only
