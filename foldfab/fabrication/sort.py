@@ -105,8 +105,9 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, starts: np.ndarray, ends: 
 
     steps = np.array([jump(a, b) for a, b in zip(chain, chain[1:])])
     saves = steps + np.append(steps[1:], 0)  # leaving: the jumps in and out (the bridge is subtracted below)
+    mean = float(steps.mean())
     for stroke in np.argsort(-saves, kind="stable").tolist():
-        if saves[stroke] <= steps.mean():
+        if saves[stroke] <= mean:
             break
         stroke = order[stroke]
         a, b = before[stroke], after[stroke]
