@@ -38,21 +38,23 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
         return plan
     two_opt = method == "two-opt"
     steps = [step for _, step in device_steps(plan, tool_changer)]
-    best = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, mixed=True)
+    theirs: dict = {}  # vpype's orders by layer and pen: the second plan often starts a layer where the first did
+    best = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, theirs, mixed=True)
     if not any(isinstance(step, Pass) and 1 < len(plan.document.layers[step.layer_id]) <= TWO_OPT_LINES
                for step in steps):
         return best
     # Layer by layer, the order that arrives and leaves by least may leave the next layer a worse
     # start (the star's valleys: 1 mm less, its mountains then 44 mm more): vpype's orders alone,
     # as before foldfab had its own sort, make the other plan, and the one that travels less wins.
-    theirs = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, mixed=False)
-    return min((best, theirs), key=lambda p: travel(p, start, tool_changer)["total"])
+    before = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, theirs, mixed=False)
+    return min((best, before), key=lambda p: travel(p, start, tool_changer)["total"])
 
 
 def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, start: complex,
-               keep_vertices: frozenset[str], mixed: bool) -> PlotPlan:
+               keep_vertices: frozenset[str], theirs: dict, mixed: bool) -> PlotPlan:
     """:func:`optimize_plan` of ``plan`` as the device runs it (``steps``), each layer in the best of
-    :func:`_orders` (``mixed`` false: vpype's where it has one)."""
+    :func:`_ours` and, on a layer of at most :data:`TWO_OPT_LINES` lines, :func:`_theirs` (``mixed``
+    false: :func:`_theirs` alone there; ``theirs`` keeps them by layer and pen)."""
     doc = plan.document.clone()  # metadata only: layers are added below, in plan order
     pen = start
     # what the pen meets, in order: a layer to draw, or a pause (where the device parks it)
@@ -67,12 +69,19 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
             merged = _collection(result)
             merged.merge(tolerance=resolution, flip=True)
             result = merged.lines
+        result = [line for line in result if len(line)]
         onward = _onward(meets[index + 1:], start, resolution)
+        orders = []
+        if 1 < len(result) <= TWO_OPT_LINES:
+            if (index, pen) not in theirs:
+                theirs[index, pen] = _theirs(result, two_opt, pen)
+            orders.append(theirs[index, pen])
+        if mixed or not orders:
+            orders[:0] = _ours(result, two_opt, pen, onward.goal())
         # A sorted order backwards (each line reversed) has the same inner travel: take the
         # order and direction that arrive and leave by less.
         candidates = [_end_towards(_reloop(order, pen, resolution, onward), pen, onward)
-                      for ordered in _choices(*_orders(result, two_opt, pen, onward.goal()), mixed)
-                      for order in (ordered, [line[::-1] for line in ordered[::-1]])]
+                      for ordered in orders for order in (ordered, [line[::-1] for line in ordered[::-1]])]
         result = min(candidates, key=lambda c: _entry_exit(c, pen, onward))
         if step.name not in keep_vertices:  # last: simplifying keeps the ends of every line
             result = _simplify(result, resolution / 2)
@@ -116,26 +125,17 @@ def _vpype_operation(name: str):
     return getattr(operations, name).callback.__wrapped__
 
 
-def _orders(lines: list[np.ndarray], two_opt: bool, pen: complex,
-            goal: complex | None) -> tuple[list[list[np.ndarray]], list[np.ndarray] | None]:
-    """Orders of ``lines`` from ``pen`` to choose from, each line either way round: foldfab's, and
-    vpype's (None: none).
-
-    foldfab's: the greedy nearest-end order over the whole layer with its stragglers moved
+def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | None) -> list[list[np.ndarray]]:
+    """foldfab's orders of ``lines`` from ``pen``, each line either way round: the greedy
+    nearest-end order over the whole layer with its stragglers moved
     (:func:`foldfab.fabrication.sort.nearest_order`), and when the pen should end near ``goal``
     (the park position, or the best way into a closed outline on the way there) the same order
     from ``goal`` backwards; each, with ``two_opt``, improved window by window (:func:`_two_opt`).
     A greedy walk depends much on where it starts: the roll's mountains, entered where its
     valleys end, end 12 m from the park position; walked from there and drawn backwards,
-    they end beside it.  vpype's: on a layer of at most :data:`TWO_OPT_LINES` lines, its
-    ``linesort`` (``--two-opt``) from the line nearest ``pen``, as foldfab did before it had its
-    own sort: a greedy walk depends on how ties are broken too, and on symmetric crease patterns
-    full of them, and in two-opt's local optima, vpype's is at times the better (the star's
-    mountains, 285 mm against 358 mm; the lantern's two-opt outlines, 1,430 mm against 1,769 mm).
-    It costs little there and would cost seconds on a large layer."""
+    they end beside it."""
     from foldfab.fabrication.sort import nearest_order
 
-    lines = [line for line in lines if len(line)]
     starts, ends = np.array([line[0] for line in lines]), np.array([line[-1] for line in lines])
     ours = []
     for begin in [pen] if goal is None or len(lines) < 2 else [pen, goal]:
@@ -144,23 +144,22 @@ def _orders(lines: list[np.ndarray], two_opt: bool, pen: complex,
         if begin is not pen:
             ordered = [line[::-1] for line in ordered[::-1]]
         ours.append(_two_opt(ordered, pen) if two_opt else ordered)
-    if not 1 < len(lines) <= TWO_OPT_LINES:
-        return ours, None
-    theirs = _vpype_operation("linesort")(_collection(_nearest_first(lines, pen)), no_flip=False, two_opt=two_opt,
-                                          passes=SORT_PASSES).lines
-    return ours, theirs
+    return ours
 
 
-def _choices(ours: list[list[np.ndarray]], theirs: list[np.ndarray] | None, mixed: bool) -> list[list[np.ndarray]]:
-    """The orders :func:`_optimized` chooses from: all (``mixed``), or vpype's where it has one."""
-    if theirs is None:
-        return ours
-    return [*ours, theirs] if mixed else [theirs]
+def _theirs(lines: list[np.ndarray], two_opt: bool, pen: complex) -> list[np.ndarray]:
+    """vpype's ``linesort`` (``--two-opt``) of ``lines`` from the line nearest ``pen``, foldfab's
+    order before it had its own sort.  A greedy walk depends on how ties are broken too, and on
+    symmetric crease patterns full of them, and in two-opt's local optima, vpype's is at times
+    the better (the star's mountains, 285 mm against 358 mm; the lantern's two-opt outlines,
+    1,430 mm against 1,769 mm); it costs little on a small layer and seconds on a large one."""
+    return _vpype_operation("linesort")(_collection(_nearest_first(lines, pen)), no_flip=False, two_opt=two_opt,
+                                        passes=SORT_PASSES).lines
 
 
 TWO_OPT_LINES = 2000
 """Lines per window of :func:`_two_opt` (vpype's two-opt takes time quadratic in the lines it is
-given), and most lines of a layer that :func:`_orders` also has vpype sort."""
+given), and most lines of a layer that :func:`_theirs` also sorts."""
 
 SORT_PASSES = 250
 """Passes of vpype's two-opt sort at most (the default of its ``linesort --passes``)."""

@@ -12,7 +12,7 @@ from foldfab.fabrication import optimize
 from foldfab.design import build_design
 from foldfab.job import parse_job
 from foldfab.fabrication.optimize import (KEPT_WHOLE_POINTS, _kept_whole, _Onward, _onward, _reloop, _simplify,
-                                         _orders)
+                                         _ours, _theirs)
 from foldfab.fabrication.scoring import crease_lines
 
 
@@ -51,34 +51,29 @@ def test_every_order_draws_every_line_once_as_it_was_or_reversed_and_two_opt_nev
         lines, window, pen, two_opt, goal):
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(optimize, "TWO_OPT_LINES", window)
-        ours, theirs = _orders(lines, two_opt, pen, goal)
-        greedy = _orders(lines, False, pen, goal)[0]
-    assert (theirs is not None) == (1 < len(lines) <= window)
+        ours = _ours(lines, two_opt, pen, goal)
+        greedy = _ours(lines, False, pen, goal)
     assert len(ours) == (1 if goal is None or len(lines) < 2 else 2)
-    for out in [*ours, *([theirs] if theirs is not None else [])]:
+    for out in ours + ([_theirs(lines, two_opt, pen)] if lines else []):
         assert sorted(map(canonical, out)) == sorted(map(canonical, lines))
     for mine, plain in zip(ours, greedy):
         if lines:
             assert pen_up(mine, pen) <= pen_up(plain, pen) + 1e-9
     if len(greedy) == 2:  # walked from the goal and drawn backwards: backwards, the walk from the goal
         backwards = [line[::-1] for line in greedy[1][::-1]]
-        assert pen_up(backwards, goal) == pytest.approx(pen_up(_orders(lines, False, goal, None)[0][0], goal))
+        assert pen_up(backwards, goal) == pytest.approx(pen_up(_ours(lines, False, goal, None)[0], goal))
 
 
 @pytest.mark.parametrize("two_opt", [False, True])
-def test_a_layer_of_one_window_may_also_take_exactly_vpypes_sort_from_the_nearest_line(two_opt):
+def test_vpypes_candidate_is_exactly_its_sort_from_the_nearest_line(two_opt):
     """vpype's ``linesort`` (``--two-opt``) from the line nearest the pen, foldfab's order before it
-    had its own sort, is a candidate on a small layer; on a large one there is none."""
+    had its own sort, is a candidate on a small layer."""
     rng = np.random.default_rng(5)
     lines = [np.array(p) for p in (rng.random((500, 2)) * 100) @ np.array([1, 1j])[:, None] + np.array([0, 3])]
     nearest = min(range(len(lines)), key=lambda i: min(abs(lines[i][0] - 7j), abs(lines[i][-1] - 7j)))
     expected = _run("linesort --two-opt" if two_opt else "linesort",
                     [lines[nearest], *lines[:nearest], *lines[nearest + 1:]])
-    _, theirs = _orders(lines, two_opt, 7j, None)
-    assert [a.tolist() for a in theirs] == [a.tolist() for a in expected]
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(optimize, "TWO_OPT_LINES", 499)
-        assert _orders(lines, two_opt, 7j, None)[1] is None
+    assert [a.tolist() for a in _theirs(lines, two_opt, 7j)] == [a.tolist() for a in expected]
 
 
 def test_simplify_sends_only_bent_lines_to_vpype_and_keeps_the_order():

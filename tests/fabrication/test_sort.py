@@ -159,6 +159,6 @@ def test_a_plan_travels_no_more_than_with_vpypes_orders_alone(job, device_name):
     raw = build_plan(design, device, dataclasses.replace(job_spec(design.job), optimize="none"))
     park = park_position(device, raw.sheet)
     steps = [step for _, step in device_steps(raw, device.tool_changer)]
-    theirs = _optimized(raw, steps, False, device.resolution, park, frozenset(), mixed=False)
+    theirs = _optimized(raw, steps, False, device.resolution, park, frozenset(), {}, mixed=False)
     ours = build_plan(design, device, job_spec(design.job))
     assert travel(ours, park, device.tool_changer)["total"] <= travel(theirs, park, device.tool_changer)["total"]
