@@ -15,7 +15,8 @@ The choice is exact: the nearest undrawn end by squared distance ``dx*dx + dy*dy
 the lowest end index (stroke ``i``'s first point is end ``2i``, its last ``2i + 1``).  The
 trees only propose candidates; a candidate is taken when every end the tree left out is
 farther by more than rounding (:data:`MARGIN`), so the order is that of the plain O(n²)
-greedy walk, deterministic and with no state shared between threads.
+greedy walk, deterministic and with no state shared between threads.  :func:`nearest_order`
+then moves the strokes the walk left behind, never adding travel.
 """
 
 from __future__ import annotations
