@@ -1,9 +1,9 @@
-"""Pen-up travel optimization with vpype's own operations, layer by layer.
+"""Pen-up travel optimization, layer by layer, on vpype's data model and operations.
 
-Within each layer: ``linemerge`` (join lines whose ends meet; skipped when no two
-ends are that close, since scoring has chained the creases already), ``linesort``
-(greedy, or with ``--two-opt``; a layer of many thousand lines tile by tile),
-``linesimplify`` within the device's resolution,
+Within each layer: vpype's ``linemerge`` (join lines whose ends meet; skipped when no two
+ends are that close, since scoring has chained the creases already), a greedy nearest-end
+sort of the whole layer (:mod:`foldfab.fabrication.sort`; with ``two-opt``, then vpype's
+``linesort --two-opt`` window by window), vpype's ``linesimplify`` within the device's resolution,
 closed outlines relooped to start where the pen arrives, and of the sorted order
 and its reverse the one that enters and leaves the layer by less travel (its last
 line turned round if it then ends nearer the next layer or the park position).  Layers
@@ -19,14 +19,14 @@ import itertools
 
 import numpy as np
 
-from foldfab.fabrication.plan import Pause, PlotPlan, device_steps
+from foldfab.fabrication.plan import Pass, Pause, PlotPlan, device_steps
 
 METHODS = ("none", "greedy", "two-opt")
 
 
 def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex = 0j,
                   keep_vertices: frozenset[str] = frozenset(), tool_changer: bool = True) -> PlotPlan:
-    """A copy of ``plan`` whose layers are merged, sorted and simplified by vpype.
+    """A copy of ``plan`` whose layers are merged (vpype), sorted and simplified (vpype).
 
     ``resolution`` (mm) bounds how far merging and simplification may move a point;
     ``start`` is where the pen is before the first layer and after every pause (the
@@ -37,9 +37,26 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
     if method == "none":
         return plan
     two_opt = method == "two-opt"
+    steps = [step for _, step in device_steps(plan, tool_changer)]
+    theirs: dict = {}  # vpype's orders by layer and pen: the second plan often starts a layer where the first did
+    best = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, theirs, mixed=True)
+    if not any(isinstance(step, Pass) and 1 < len(plan.document.layers[step.layer_id]) <= TWO_OPT_LINES
+               for step in steps):
+        return best
+    # Layer by layer, the order that arrives and leaves by least may leave the next layer a worse
+    # start (the star's valleys: 1 mm less, its mountains then 44 mm more): vpype's orders alone,
+    # as before foldfab had its own sort, make the other plan, and the one that travels less wins.
+    before = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, theirs, mixed=False)
+    return min((best, before), key=lambda p: travel(p, start, tool_changer)["total"])
+
+
+def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, start: complex,
+               keep_vertices: frozenset[str], theirs: dict, mixed: bool) -> PlotPlan:
+    """:func:`optimize_plan` of ``plan`` as the device runs it (``steps``), each layer in the best of
+    :func:`_ours` and, on a layer of at most :data:`TWO_OPT_LINES` lines, :func:`_theirs` (``mixed``
+    false: :func:`_theirs` alone there; ``theirs`` keeps them by layer and pen)."""
     doc = plan.document.clone()  # metadata only: layers are added below, in plan order
     pen = start
-    steps = [step for _, step in device_steps(plan, tool_changer)]
     # what the pen meets, in order: a layer to draw, or a pause (where the device parks it)
     meets = [step if isinstance(step, Pause) else plan.document.layers[step.layer_id] for step in steps]
     for index, step in enumerate(steps):
@@ -52,12 +69,19 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
             merged = _collection(result)
             merged.merge(tolerance=resolution, flip=True)
             result = merged.lines
-        result = _sort(result, two_opt, pen)
+        result = [line for line in result if len(line)]
         onward = _onward(meets[index + 1:], start, resolution)
-        # The sorted order backwards (each line reversed) has the same inner travel: take the
-        # direction that arrives and leaves by less.
+        orders = []
+        if 1 < len(result) <= TWO_OPT_LINES:
+            if (index, pen) not in theirs:
+                theirs[index, pen] = _theirs(result, two_opt, pen)
+            orders.append(theirs[index, pen])
+        if mixed or not orders:
+            orders[:0] = _ours(result, two_opt, pen, onward.goal())
+        # A sorted order backwards (each line reversed) has the same inner travel: take the
+        # order and direction that arrive and leave by less.
         candidates = [_end_towards(_reloop(order, pen, resolution, onward), pen, onward)
-                      for order in (result, [line[::-1] for line in result[::-1]])]
+                      for ordered in orders for order in (ordered, [line[::-1] for line in ordered[::-1]])]
         result = min(candidates, key=lambda c: _entry_exit(c, pen, onward))
         if step.name not in keep_vertices:  # last: simplifying keeps the ends of every line
             result = _simplify(result, resolution / 2)
@@ -101,28 +125,74 @@ def _vpype_operation(name: str):
     return getattr(operations, name).callback.__wrapped__
 
 
-def _sort(lines: list[np.ndarray], two_opt: bool, pen: complex) -> list[np.ndarray]:
-    """``lines`` in the order vpype's ``linesort`` (``two_opt``: with ``--two-opt``) gives
-    them, from the line nearest ``pen`` on (vpype's sort starts from the first line it is given).
+def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | None) -> list[list[np.ndarray]]:
+    """foldfab's orders of ``lines`` from ``pen``, each line either way round: the greedy
+    nearest-end order over the whole layer with its stragglers moved
+    (:func:`foldfab.fabrication.sort.nearest_order`), and when the pen should end near ``goal``
+    (the park position, or the best way into a closed outline on the way there) the same order
+    from ``goal`` backwards; each, with ``two_opt``, improved window by window (:func:`_two_opt`).
+    A greedy walk depends much on where it starts: the roll's mountains, entered where its
+    valleys end, end 12 m from the park position; walked from there and drawn backwards,
+    they end beside it."""
+    from foldfab.fabrication.sort import nearest_order
 
-    A layer of more than :data:`TILE_LINES` lines is sorted tile by tile (:func:`_tiles`),
-    each tile from where the pen left the one before.  vpype's line index rebuilds its
-    KD-tree over every remaining line whenever the pen's neighbourhood runs dry, so one
-    sort of a 50,000-line crease layer takes 6 s and in tiles 2.5 s; and a greedy sort kept
-    within a tile leaves no stragglers to come back for across the sheet, so on crease
-    patterns the tiles mostly travel less too (the 12.6 m roll's valleys: 12.5 m against
-    19.4 m; its mountains, long zigzags among short pieces, 43.3 m against 38.3 m).
-    """
+    starts, ends = np.array([line[0] for line in lines]), np.array([line[-1] for line in lines])
+    ours = []
+    for begin in [pen] if goal is None or len(lines) < 2 else [pen, goal]:
+        order, flipped = nearest_order(starts, ends, begin)
+        ordered = [lines[i][::-1] if turn else lines[i] for i, turn in zip(order.tolist(), flipped.tolist())]
+        if begin is not pen:
+            ordered = [line[::-1] for line in ordered[::-1]]
+        ours.append(_two_opt(ordered, pen) if two_opt else ordered)
+    return ours
+
+
+def _theirs(lines: list[np.ndarray], two_opt: bool, pen: complex) -> list[np.ndarray]:
+    """vpype's ``linesort`` (``--two-opt``) of ``lines`` from the line nearest ``pen``, foldfab's
+    order before it had its own sort.  A greedy walk depends on how ties are broken too, and on
+    symmetric crease patterns full of them, and in two-opt's local optima, vpype's is at times
+    the better (the star's mountains, 285 mm against 358 mm; the lantern's two-opt outlines,
+    1,430 mm against 1,769 mm); it costs little on a small layer and seconds on a large one."""
+    return _vpype_operation("linesort")(_collection(_nearest_first(lines, pen)), no_flip=False, two_opt=two_opt,
+                                        passes=SORT_PASSES).lines
+
+
+TWO_OPT_LINES = 2000
+"""Lines per window of :func:`_two_opt` (vpype's two-opt takes time quadratic in the lines it is
+given), and most lines of a layer that :func:`_theirs` also sorts."""
+
+SORT_PASSES = 250
+"""Passes of vpype's two-opt sort at most (the default of its ``linesort --passes``)."""
+
+
+def _two_opt(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
+    """``lines`` (in drawing order from ``pen``) improved by vpype's ``linesort --two-opt``, run on
+    consecutive windows of :data:`TWO_OPT_LINES` lines, each from where the pen left the one
+    before.  A window's new order is kept only if the way into it, through it and on to the
+    next window's first line is shorter than before, so the whole never travels more than
+    ``lines`` (one two-opt over a 50,000-line layer had not finished after 15 minutes)."""
     linesort = _vpype_operation("linesort")
     out: list[np.ndarray] = []
-    for tile in _tiles(lines, pen):
-        chosen = [lines[i] for i in tile]
-        if len(chosen) > 1:
-            chosen = linesort(_collection(_nearest_first(chosen, pen)), no_flip=False, two_opt=two_opt,
-                              passes=SORT_PASSES).lines
-        out.extend(chosen)
-        pen = out[-1][-1] if out else pen
+    for begin in range(0, len(lines), TWO_OPT_LINES):
+        window = lines[begin:begin + TWO_OPT_LINES]
+        after = _Onward(np.array([lines[begin + TWO_OPT_LINES][0]])) if begin + TWO_OPT_LINES < len(lines) else None
+        if len(window) > 1:
+            improved = linesort(_collection(window), no_flip=False, two_opt=True, passes=SORT_PASSES).lines
+            if _entry_exit(improved, pen, after) < _entry_exit(window, pen, after):
+                window = improved
+        out.extend(window)
+        pen = out[-1][-1]
     return out
+
+
+def _nearest_first(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
+    """``lines`` with the one whose end is nearest ``pen`` moved first (and turned to start there)."""
+    starts = np.array([line[0] for line in lines])
+    ends = np.array([line[-1] for line in lines])
+    dist = np.minimum(np.abs(starts - pen), np.abs(ends - pen))
+    i = int(np.argmin(dist))
+    first = lines[i] if abs(starts[i] - pen) <= abs(ends[i] - pen) else lines[i][::-1]
+    return [first, *lines[:i], *lines[i + 1:]]
 
 
 def _simplify(lines: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
@@ -172,54 +242,6 @@ def _kept_whole(lines: list[np.ndarray], tolerance: float) -> np.ndarray:
     return whole
 
 
-SORT_PASSES = 250
-"""Passes of vpype's two-opt sort at most (the default of its ``linesort --passes``)."""
-
-
-TILE_LINES = 2000
-"""Lines per tile, on average, when a layer is sorted in tiles (see :func:`_sort`)."""
-
-
-def _tiles(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
-    """Indices of ``lines`` by tile, tiles in the order to visit them.
-
-    Tiles are square cells of a grid over the lines' midpoints, as many as it takes for
-    about :data:`TILE_LINES` lines per cell (but never more than four cells per
-    :data:`TILE_LINES` lines, however thin the layer).  The grid runs in bands across its
-    longer side, visited in serpentine order from the end nearer ``pen``.  One tile for
-    :data:`TILE_LINES` lines or fewer.
-    """
-    count = -(-len(lines) // TILE_LINES)
-    if count <= 1:
-        return [np.arange(len(lines))]
-    mid = np.array([(line[0] + line[-1]) / 2 for line in lines])
-    xy = np.column_stack([mid.real, mid.imag])
-    low = xy.min(axis=0)
-    size = np.maximum(xy.max(axis=0) - low, 1e-9)
-    along = 0 if size[0] >= size[1] else 1
-    bands = min(4 * count, max(1, round(float(np.sqrt(count * size[along] / size[1 - along])))))
-    across = -(-count // bands)
-    cell = ((xy - low) / size).T
-    band = np.minimum((cell[along] * bands).astype(int), bands - 1)
-    step = np.minimum((cell[1 - along] * across).astype(int), across - 1)
-    key = band * across + np.where(band % 2 == 0, step, across - 1 - step)
-    order = np.argsort(key, kind="stable")
-    tiles = np.split(order, np.flatnonzero(np.diff(key[order])) + 1)
-    if abs(mid[tiles[-1]].mean() - pen) < abs(mid[tiles[0]].mean() - pen):
-        tiles.reverse()
-    return tiles
-
-
-def _nearest_first(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
-    """``lines`` with the one whose end is nearest ``pen`` moved first (and turned to start there)."""
-    starts = np.array([line[0] for line in lines])
-    ends = np.array([line[-1] for line in lines])
-    dist = np.minimum(np.abs(starts - pen), np.abs(ends - pen))
-    i = int(np.argmin(dist))
-    first = lines[i] if abs(starts[i] - pen) <= abs(ends[i] - pen) else lines[i][::-1]
-    return [first, *lines[:i], *lines[i + 1:]]
-
-
 def _entries(lines, tolerance: float) -> np.ndarray:
     """Where the pen can begin drawing ``lines``: the ends of open lines, any vertex of a
     closed one (it is relooped to start there)."""
@@ -243,6 +265,12 @@ class _Onward:
 
     def cost(self, point: complex) -> float:
         return float(self.costs(np.array([point]))[0])
+
+    def goal(self) -> complex | None:
+        """Where best to leave for what follows, when that is one point or a closed loop."""
+        if self.extra is not None:
+            return complex(self.targets[int(np.argmin(self.extra))])
+        return complex(self.targets[0]) if len(self.targets) == 1 else None
 
 
 def _onward(later: list, park: complex, tolerance: float) -> _Onward:
@@ -271,15 +299,15 @@ def _closed(line: np.ndarray, tolerance: float) -> bool:
     return len(line) > 3 and abs(line[0] - line[-1]) <= tolerance
 
 
-def _entry_exit(lines: list[np.ndarray], pen: complex, onward: _Onward) -> float:
+def _entry_exit(lines: list[np.ndarray], pen: complex, onward: _Onward | None) -> float:
     """Travel from ``pen`` into ``lines``, inside them (reloop and the last line's turn change
-    it) and from their end on (``onward``)."""
+    it) and from their end on (``onward``; None: nowhere)."""
     if not lines:
         return 0.0
     starts = np.array([line[0] for line in lines])
     ends = np.array([line[-1] for line in lines])
     inside = float(np.abs(starts[1:] - ends[:-1]).sum())
-    return abs(starts[0] - pen) + inside + onward.cost(ends[-1])
+    return abs(starts[0] - pen) + inside + (0.0 if onward is None else onward.cost(ends[-1]))
 
 
 def _end_towards(lines: list[np.ndarray], pen: complex, onward: _Onward) -> list[np.ndarray]:

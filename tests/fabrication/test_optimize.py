@@ -1,5 +1,5 @@
-"""Layer optimization helpers (foldfab.fabrication.optimize): tiled sorting of large layers, simplification
-of only the lines that can change."""
+"""Layer optimization helpers (foldfab.fabrication.optimize): sorting whole layers, two-opt on top of it,
+simplification of only the lines that can change."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from foldfab.fabrication import optimize
 from foldfab.design import build_design
 from foldfab.job import parse_job
 from foldfab.fabrication.optimize import (KEPT_WHOLE_POINTS, _kept_whole, _Onward, _onward, _reloop, _simplify,
-                              _sort, _tiles)
+                                         _ours, _theirs)
 from foldfab.fabrication.scoring import crease_lines
 
 
@@ -45,54 +45,35 @@ line = st.lists(point, min_size=2, max_size=5).map(lambda p: np.array(p, dtype=c
 
 
 @settings(max_examples=60, deadline=None)
-@given(lines=st.lists(line, max_size=60), tile=st.integers(1, 9), pen=point)
-def test_tiled_sort_draws_every_line_once_as_it_was_or_reversed(lines, tile, pen):
+@given(lines=st.lists(line, max_size=60), window=st.integers(2, 9), pen=point, two_opt=st.booleans(),
+       goal=st.none() | point)
+def test_every_order_draws_every_line_once_as_it_was_or_reversed_and_two_opt_never_travels_more(
+        lines, window, pen, two_opt, goal):
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(optimize, "TILE_LINES", tile)
-        tiles = _tiles(lines, pen)
-        out = _sort(lines, False, pen)
-    assert sorted(np.concatenate(tiles).tolist()) == list(range(len(lines)))
-    assert sorted(map(canonical, out)) == sorted(map(canonical, lines))
-
-
-def test_tiles_run_from_the_pen_and_each_borders_the_next():
-    rng = np.random.default_rng(3)
-    starts = rng.random(3000) * 600 + 1j * rng.random(3000) * 200  # a sheet three times as long as high
-    lines = [np.array([a, a + 2 + 1j]) for a in starts]
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(optimize, "TILE_LINES", 100)
-        tiles = _tiles(lines, 0j)
-        backwards = _tiles(lines, 600 + 200j)
-    centres = np.array([np.mean([lines[i][0] for i in tile]) for tile in tiles])
-    assert len(tiles) >= 30
-    cell = np.sqrt(600 * 200 / len(tiles))  # the side of a square cell
-    assert abs(centres[0]) < 2 * cell  # the first tile is the corner the pen is at
-    assert np.abs(np.diff(centres)).max() < 1.6 * cell  # serpentine: the next tile is a neighbour
-    assert [t.tolist() for t in backwards] == [t.tolist() for t in tiles[::-1]]
+        patch.setattr(optimize, "TWO_OPT_LINES", window)
+        ours = _ours(lines, two_opt, pen, goal)
+        greedy = _ours(lines, False, pen, goal)
+    assert len(ours) == (1 if goal is None or len(lines) < 2 else 2)
+    for out in ours + ([_theirs(lines, two_opt, pen)] if lines else []):
+        assert sorted(map(canonical, out)) == sorted(map(canonical, lines))
+    for mine, plain in zip(ours, greedy):
+        if lines:
+            assert pen_up(mine, pen) <= pen_up(plain, pen) + 1e-9
+    if len(greedy) == 2:  # walked from the goal and drawn backwards: backwards, the walk from the goal
+        backwards = [line[::-1] for line in greedy[1][::-1]]
+        assert pen_up(backwards, goal) == pytest.approx(pen_up(_ours(lines, False, goal, None)[0], goal))
 
 
 @pytest.mark.parametrize("two_opt", [False, True])
-def test_a_layer_within_one_tile_is_exactly_vpypes_sort(two_opt):
+def test_vpypes_candidate_is_exactly_its_sort_from_the_nearest_line(two_opt):
+    """vpype's ``linesort`` (``--two-opt``) from the line nearest the pen, foldfab's order before it
+    had its own sort, is a candidate on a small layer."""
     rng = np.random.default_rng(5)
     lines = [np.array(p) for p in (rng.random((500, 2)) * 100) @ np.array([1, 1j])[:, None] + np.array([0, 3])]
-    assert len(_tiles(lines, 7j)) == 1
-    out = _sort(lines, two_opt, 7j)
     nearest = min(range(len(lines)), key=lambda i: min(abs(lines[i][0] - 7j), abs(lines[i][-1] - 7j)))
-    expected = _run("linesort --two-opt" if two_opt else "linesort", [lines[nearest], *lines[:nearest], *lines[nearest + 1:]])
-    assert [a.tolist() for a in out] == [a.tolist() for a in expected]
-
-
-@pytest.mark.parametrize("points, corners", [(201, 60), (301, 40), (501, 30)])
-def test_tiles_travel_less_than_one_vpype_sort_on_a_long_crease_pattern(points, corners):
-    """On crease patterns (strips of parallel creases) the greedy sort of a whole layer leaves
-    stragglers behind; sorted tile by tile it does not."""
-    profile = ", ".join(f"[{0.3 * (i % 2)}, {0.5 * i:.2f}]" for i in range(points))
-    job = parse_job(f"[profile]\npoints = [{profile}]\n[trajectory]\ntemplate = \"regular\"\n"
-                    f"corners = {corners}\nradius = 2000\n")
-    lines = crease_lines(build_design(job, check_penetration=False).crease_pattern, "V")
-    assert len(lines) > optimize.TILE_LINES
-    whole = _run("linesort", lines)
-    assert pen_up(_sort(lines, False, lines[0][0]), lines[0][0]) < pen_up(whole, lines[0][0])
+    expected = _run("linesort --two-opt" if two_opt else "linesort",
+                    [lines[nearest], *lines[:nearest], *lines[nearest + 1:]])
+    assert [a.tolist() for a in _theirs(lines, two_opt, 7j)] == [a.tolist() for a in expected]
 
 
 def test_simplify_sends_only_bent_lines_to_vpype_and_keeps_the_order():
@@ -128,22 +109,6 @@ def test_kept_whole_skips_zigzags_and_not_what_could_shorten():
     closed = np.array([0, 1, 1j, 0])  # a chord of zero length
     long_line = np.arange(KEPT_WHOLE_POINTS + 1) * (1 + 0j) + 1j * (np.arange(KEPT_WHOLE_POINTS + 1) % 2)
     assert _kept_whole([zigzag, nearly_straight, closed, long_line], 0.01).tolist() == [True, False, False, False]
-
-
-def test_each_tile_starts_at_the_line_nearest_where_the_last_one_ended():
-    rng = np.random.default_rng(8)
-    starts = rng.random(800) * 300 + 1j * rng.random(800) * 300
-    lines = [np.array([a, a + 3 - 2j]) for a in starts]
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(optimize, "TILE_LINES", 100)
-        tiles = _tiles(lines, 0j)
-        out = _sort(lines, False, 0j)
-    first = np.cumsum([0] + [len(t) for t in tiles[:-1]])
-    assert len(tiles) > 4
-    for tile, at in zip(tiles, first):
-        pen = out[at - 1][-1] if at else 0j
-        ends = np.array([[lines[i][0], lines[i][-1]] for i in tile])
-        assert abs(out[at][0] - pen) == pytest.approx(np.abs(ends - pen).min())
 
 
 SQUARE = np.array([0, 100, 100 + 100j, 100j, 0])  # a closed loop, one corner on the park position
@@ -232,3 +197,41 @@ def test_a_layer_after_a_pause_is_sorted_from_the_park_position():
             assert layers["between layers"] == 0
         else:
             assert "at pauses" not in layers
+
+
+def test_the_goal_of_a_layer_is_the_park_position_or_the_best_way_into_a_lone_outline():
+    import vpype as vp
+
+    park = 300 + 300j
+    assert _onward([], park, 0.025).goal() == park
+    assert _onward([vp.LineCollection([SQUARE])], park, 0.025).goal() == 100 + 100j  # the corner nearest the park
+    two = vp.LineCollection([np.array([0, 10]), np.array([50, 60])])
+    assert _onward([two], park, 0.025).goal() is None  # many ways in: the walk from the pen decides
+
+
+def test_the_last_layer_walked_back_from_the_park_position_travels_less():
+    """A long strip's valleys then mountains, the park position at one end (as on the roll): the
+    mountains walked greedily from where the valleys end finish far from the park position; also
+    walked from the park position and drawn backwards, the plan travels 17% less."""
+    import vpype as vp
+
+    from foldfab.devices import Tool
+    from foldfab.fabrication.optimize import optimize_plan, travel
+    from foldfab.fabrication.plan import Pass, PlotPlan
+
+    profile = ", ".join(f"[{0.3 * (i % 2)}, {0.5 * i:.2f}]" for i in range(201))
+    job = parse_job(f"[profile]\npoints = [{profile}]\n[trajectory]\ntemplate = \"regular\"\n"
+                    f"corners = 60\nradius = 2000\n")
+    pattern = build_design(job, check_penetration=False).crease_pattern
+    doc = vp.Document()
+    for layer, kind in enumerate("VM", start=1):
+        doc.add(vp.LineCollection(crease_lines(pattern, kind)), layer)
+    ends = np.array([line[[0, -1]] for line in doc.layers[1].lines]).ravel()
+    park = complex(ends.real.max(), ends.imag.max())
+    plan = PlotPlan(doc, [Pass(1, "valley", Tool(1, None, 10.0)), Pass(2, "mountain", Tool(1, None, 10.0))],
+                    (13000.0, 400.0))
+    walked_back = travel(optimize_plan(plan, "greedy", 0.025, park), park)["total"]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(_Onward, "goal", lambda self: None)
+        forward_only = travel(optimize_plan(plan, "greedy", 0.025, park), park)["total"]
+    assert walked_back < 0.9 * forward_only
