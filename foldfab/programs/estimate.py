@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import DeviceProfile, Motion
+    from foldfab.programs.drawing import Drawn
     from foldfab.programs.machine import Interpretation
 
 CONTINUATION_ANGLE = math.radians(1.0)
@@ -245,44 +246,47 @@ def planned_segments(points: np.ndarray, starts: np.ndarray, speeds: np.ndarray,
 
 def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
     """Estimate the run time of ``interpretation`` on ``device``."""
+    from foldfab.programs.drawing import from_interpretation
+
+    return estimate_drawn(from_interpretation(interpretation), device)
+
+
+def estimate_drawn(drawn: Drawn, device: DeviceProfile) -> Estimate:
+    """Estimate the run time on ``device`` of what a program draws (:class:`~foldfab.programs.drawing.Drawn`:
+    read back, or recorded by the writer)."""
     import numpy as np
 
     motion = device.motion
-    strokes, travels = interpretation.strokes, interpretation.travels
-    names: dict[str, int] = {}  # layer name -> index, in order of first appearance
-    stroke_layers = np.array([names.setdefault(s.layer, len(names)) for s in strokes], dtype=np.intp)
-    speeds = np.array([s.speed for s in strokes], dtype=float)
-    sizes = np.array([len(s.points) for s in strokes], dtype=np.intp)
-    points = np.concatenate([s.points for s in strokes]) if strokes else np.zeros((0, 2))
-    starts = np.cumsum(sizes) - sizes
+    names = dict(zip(drawn.names, range(len(drawn.names))))  # layer name -> index, in order of first appearance
+    stroke_layers, speeds, points, starts = drawn.layers, drawn.speeds, drawn.points, drawn.starts
+    strokes = len(starts)
     if motion.junction_deviation is None:
         lengths, runs, owners, heads = polyline_runs(points, starts)
         run_times = move_times(runs, *move_limits(heads, speeds[owners], motion))
     else:
         lengths, run_times, owners = planned_segments(points, starts, speeds, motion)
-    seconds = np.bincount(owners, weights=run_times, minlength=len(strokes))
-    ends = np.array([(*t.start, *t.end) for t in travels], dtype=float).reshape(-1, 4)
+    seconds = np.bincount(owners, weights=run_times, minlength=strokes)
+    ends = drawn.travels
     steps = ends[:, 2:] - ends[:, :2]
     travel_lengths = np.hypot(steps[:, 0], steps[:, 1])
     moves = travel_times(steps, motion)
     if strokes:
-        leads_to = np.array([t.next_stroke for t in travels], dtype=np.intp)
-        travel_layers = stroke_layers[np.minimum(leads_to, len(strokes) - 1)]
+        travel_layers = stroke_layers[np.minimum(drawn.leads_to, strokes - 1)]
     else:
-        if travels:
+        if len(ends):
             names["travel"] = 0
-        travel_layers = np.zeros(len(travels), dtype=np.intp)
+        travel_layers = np.zeros(len(ends), dtype=np.intp)
     count = len(names)
     lifts = np.bincount(stroke_layers, minlength=count)
-    drawn = np.bincount(stroke_layers, weights=lengths, minlength=count)
+    drawn_lengths = np.bincount(stroke_layers, weights=lengths, minlength=count)
     travelled = np.bincount(travel_layers, weights=travel_lengths, minlength=count)
     # each layer's strokes, then the travels that lead to it, each in order (bincount adds in order)
     times = np.bincount(np.concatenate([stroke_layers, travel_layers]),
                         weights=np.concatenate([seconds + 2 * motion.pen_lift_time, moves]),
                         minlength=count)
-    layers = {name: LayerTime(float(drawn[i]), int(lifts[i]), float(travelled[i]), float(times[i]))
+    layers = {name: LayerTime(float(drawn_lengths[i]), int(lifts[i]), float(travelled[i]), float(times[i]))
               for name, i in names.items()}
-    lift_time = 2 * motion.pen_lift_time * len(strokes)
+    lift_time = 2 * motion.pen_lift_time * strokes
     lower = _running_total(lengths / speeds)
     return Estimate(_running_total(seconds), float(moves.sum()), lift_time,
                     lower + lift_time, layers)

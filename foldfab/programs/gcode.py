@@ -80,7 +80,7 @@ class _GcodeWriter:
 
     def __init__(self, device: DeviceProfile):
         self.device = device
-        self.builder = ProgramBuilder("gcode", device)
+        self.builder = ProgramBuilder("gcode", device, record=True)
         self.motion: str | None = None
         self.feed: float | None = None
         self.position: str | None = None  # "X.. Y.." of the last move
@@ -144,7 +144,9 @@ class _GcodeWriter:
 
     def park(self) -> None:
         self.pen_up()
-        self.travel(_xy_words(np.asarray([self.device.motion.park]))[0])
+        park = np.asarray([self.device.motion.park])
+        self.travel(_xy_words(park)[0])
+        self.builder.recorder.move(tuple(np.round(park[0], GCODE_DECIMALS).tolist()))
 
     def sweep(self, sweep: Sweep) -> None:
         self.builder.start(sweep)
@@ -161,6 +163,10 @@ class _GcodeWriter:
         feed = sweep.tool.speed * 60
         power = self.number(sweep.tool.power * self.device.gcode.spindle_max) if self.device.laser else None
         words = _xy_words(np.concatenate(sweep.lines)) if sweep.lines else []
+        drawn = [line for line in sweep.lines if len(line) > 1 or not self.device.laser]
+        if drawn:   # as the text gives them: rounded to its decimals, the speed as its F word
+            self.builder.recorder.strokes(np.round(np.concatenate(drawn), GCODE_DECIMALS), [len(line) for line in drawn],
+                                          float(self.number(feed)) / 60, sweep.name)
         start = 0
         for line in sweep.lines:
             points = words[start:start + len(line)]

@@ -34,7 +34,7 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
     import numpy as np
 
     items = sweeps(plan, device)
-    out = ProgramBuilder("hpgl", device)
+    out = ProgramBuilder("hpgl", device, record=True)
     park_x, park_y = device.park_units
     park = f"PU{park_x},{park_y};SP0;"
     limit = device.buffer.instruction_limit
@@ -43,6 +43,7 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
     for item in items:
         if isinstance(item, Stop):
             out.write(park)
+            out.recorder.move(device.park_units)
             pen = 0
             out.pause(item)
             continue
@@ -54,11 +55,14 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
         if tool.force is not None and tool.force != force:
             out.write(f"FS{fmt_number(tool.force, 0)};")
             force = tool.force
+        velocity = fmt_number(tool.speed / 10, SPEED_DECIMALS[device.dialect])
         if tool.speed != speed:
-            out.write(f"VS{fmt_number(tool.speed / 10, SPEED_DECIMALS[device.dialect])};")
+            out.write(f"VS{velocity};")
             speed = tool.speed
         # one rounding and one conversion to Python ints for the whole sweep, then slices
-        units = np.rint(np.concatenate(item.lines)).astype(np.int64).ravel().tolist()
+        rounded = np.rint(np.concatenate(item.lines)).astype(np.int64)
+        out.recorder.strokes(rounded, [len(line) for line in item.lines], float(velocity) * 10, item.name)
+        units = rounded.ravel().tolist()
         start = 0
         for line in item.lines:
             end = start + 2 * len(line)
@@ -68,6 +72,7 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
             out.write(f"PU{units[start]},{units[start + 1]};PD{rest};")
             start = end
     out.write(park)
+    out.recorder.move(device.park_units)
     return out.build()
 
 

@@ -21,18 +21,20 @@ expands ``passes`` and inserts tool-change pauses for devices without a pen chan
 from __future__ import annotations
 
 import bisect
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from operator import attrgetter
 from typing import TYPE_CHECKING, Union
 
 from foldfab.errors import FoldfabError
 from foldfab.devices import Tool
 from foldfab.fabrication.plan import Pass, Pause, PlotPlan, device_steps
+from foldfab.programs.drawing import Recorder, Recording
 
 if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import DeviceProfile, Frame
+    from foldfab.programs.drawing import Drawn
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,15 @@ class Program:
     device: str
     sections: tuple[Section, ...]
     pauses: tuple[PauseMark, ...]
+    recording: Recording | None = field(default=None, compare=False, repr=False)
+    """What the writer drew, as it wrote it (HP-GL and G-code writers record; None otherwise)."""
+
+    def drawn(self, frame: Frame) -> Drawn | None:
+        """What the program draws on the sheet ``frame`` maps to, as its writer recorded it (no
+        read-back); None when the writer did not record."""
+        if self.recording is None:
+            return None
+        return self.recording.drawn(frame, tuple(p.message for p in self.pauses))
 
     def encode(self) -> bytes:
         """The bytes to send."""
@@ -99,8 +110,10 @@ class Stop:
 class ProgramBuilder:
     """Accumulates program text and records section and pause offsets."""
 
-    def __init__(self, protocol: str, device: DeviceProfile):
+    def __init__(self, protocol: str, device: DeviceProfile, record: bool = False):
         self.protocol, self.device = protocol, device
+        self.recorder = Recorder(device.park_units) if record else None
+        """Where the writer says what it draws (``record``: see :mod:`~foldfab.programs.drawing`)."""
         self.chunks: list[str] = []
         self.offset = 0
         self.sections: list[Section] = []
@@ -121,7 +134,7 @@ class ProgramBuilder:
         text = "".join(self.chunks)
         text.encode("ascii")  # writers emit ASCII only; fail loudly otherwise
         return Program(text, self.protocol, self.device.name, tuple(self.sections),
-                       tuple(self.pauses))
+                       tuple(self.pauses), self.recorder.record if self.recorder else None)
 
 
 def sweeps(plan: PlotPlan, device: DeviceProfile) -> list[Union[Sweep, Stop]]:
