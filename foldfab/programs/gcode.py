@@ -162,15 +162,16 @@ class _GcodeWriter:
                 else sweep.tool.pen_down if sweep.tool.pen_down is not None else self.device.layers[sweep.name].pen_down)
         feed = sweep.tool.speed * 60
         power = self.number(sweep.tool.power * self.device.gcode.spindle_max) if self.device.laser else None
-        words = _xy_words(np.concatenate(sweep.lines)) if sweep.lines else []
-        drawn = [line for line in sweep.lines if len(line) > 1 or not self.device.laser]
-        if drawn:   # as the text gives them: rounded to its decimals, the speed as its F word
-            self.builder.recorder.strokes(np.round(np.concatenate(drawn), GCODE_DECIMALS), [len(line) for line in drawn],
-                                          float(self.number(feed)) / 60, sweep.name)
+        words = _xy_words(sweep.points)
+        drawn = np.repeat(sweep.sizes > 1, sweep.sizes) if self.device.laser else slice(None)
+        # as the text gives them: rounded to its decimals, the speed as its F word
+        self.builder.recorder.strokes(np.round(sweep.points[drawn], GCODE_DECIMALS),
+                                      sweep.sizes[sweep.sizes > 1] if self.device.laser else sweep.sizes,
+                                      float(self.number(feed)) / 60, sweep.name)
         start = 0
-        for line in sweep.lines:
-            points = words[start:start + len(line)]
-            start += len(points)
+        for size in sweep.sizes.tolist():
+            points = words[start:start + size]
+            start += size
             if self.device.laser:
                 if len(points) == 1:
                     continue  # a laser burns only while it moves (M4): it has no dots

@@ -60,12 +60,11 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
             out.write(f"VS{velocity};")
             speed = tool.speed
         # one rounding and one conversion to Python ints for the whole sweep, then slices
-        rounded = np.rint(np.concatenate(item.lines)).astype(np.int64)
-        out.recorder.strokes(rounded, [len(line) for line in item.lines], float(velocity) * 10, item.name)
+        rounded = np.rint(item.points).astype(np.int64)
+        out.recorder.strokes(rounded, item.sizes, float(velocity) * 10, item.name)
         units = rounded.ravel().tolist()
         start = 0
-        for line in item.lines:
-            end = start + 2 * len(line)
+        for end in (2 * np.cumsum(item.sizes)).tolist():
             rest = ",".join(map(str, units[start + 2:end]))
             if len(rest) + 3 > limit:
                 rest = _split_pd(units[start + 2:end], limit, device)

@@ -89,14 +89,23 @@ class Program:
 
 @dataclass(frozen=True)
 class Sweep:
-    """Draw ``lines`` (device units, each (N, 2) float) once with ``tool``."""
+    """Draw a layer's lines once with ``tool``: ``points`` (M, 2; device units, float) holds
+    them one after another, line k ``sizes[k]`` points long (at least one)."""
 
     step: int
     layer_id: int
     name: str
     repeat: int
     tool: Tool
-    lines: list[np.ndarray]
+    points: np.ndarray
+    sizes: np.ndarray
+
+    @property
+    def lines(self) -> list[np.ndarray]:
+        """Each line on its own (N, 2): for writers that work line by line anyway."""
+        import numpy as np
+
+        return np.split(self.points, np.cumsum(self.sizes)[:-1]) if len(self.sizes) else []
 
 
 @dataclass(frozen=True)
@@ -142,7 +151,7 @@ def sweeps(plan: PlotPlan, device: DeviceProfile) -> list[Union[Sweep, Stop]]:
     import numpy as np
 
     frame = device.frame(plan.sheet)
-    layers = {}
+    layers: dict[int, tuple[np.ndarray, np.ndarray]] = {}   # sheet points (complex) and line sizes
     for index, step in enumerate(plan.steps):
         if isinstance(step, Pass) and step.layer_id not in plan.document.layers:
             raise FoldfabError(
@@ -152,34 +161,32 @@ def sweeps(plan: PlotPlan, device: DeviceProfile) -> list[Union[Sweep, Stop]]:
         if isinstance(step, Pass):
             device.check_tool(step.tool, f"plan step {index + 1} ({step.name} pass)")
         if isinstance(step, Pass) and step.layer_id not in layers:
-            lines = [np.asarray(line, dtype=complex) for line in plan.document.layers[step.layer_id]]
-            layers[step.layer_id] = [line for line in lines if len(line)]
+            layers[step.layer_id] = _layer_arrays(plan.document.layers[step.layer_id])
         elif not isinstance(step, (Pass, Pause)):
             raise FoldfabError(f"plan step {index + 1} is a {type(step).__name__}, "
                                "expected a Pass or a Pause")
-    drawn = [line for lines in layers.values() for line in lines]
+    drawn = [points for points, _ in layers.values() if len(points)]
     if drawn:
         check_fits(np.concatenate(drawn), plan.sheet, device)
-    converted = {lid: _to_device(frame, lines) for lid, lines in layers.items()}
+    converted = {lid: (frame.to_device(points), sizes) for lid, (points, sizes) in layers.items()}
 
     result: list[Union[Sweep, Stop]] = []
     for index, step in device_steps(plan, device.tool_changer):
         if isinstance(step, Pause):
             result.append(Stop(index, step.message))
-        elif converted[step.layer_id]:
-            result.extend(Sweep(index, step.layer_id, step.name, repeat, step.tool,
-                                converted[step.layer_id]) for repeat in range(step.tool.passes))
+        elif len(converted[step.layer_id][1]):
+            result.extend(Sweep(index, step.layer_id, step.name, repeat, step.tool, *converted[step.layer_id])
+                          for repeat in range(step.tool.passes))
     return result
 
 
-def _to_device(frame: Frame, lines: list[np.ndarray]) -> list[np.ndarray]:
-    """Convert many lines with one vectorized transform."""
+def _layer_arrays(lines) -> tuple[np.ndarray, np.ndarray]:
+    """A layer's non-empty lines as one complex array and each line's point count."""
     import numpy as np
 
-    if not lines:
-        return []
-    points = frame.to_device(np.concatenate(lines))
-    return np.split(points, np.cumsum([len(line) for line in lines])[:-1])
+    sizes = np.fromiter(map(len, lines), dtype=np.int64, count=len(lines))
+    points = np.asarray(np.concatenate(lines) if len(lines) else [], dtype=complex)
+    return points, sizes[sizes > 0]
 
 
 def check_fits(points: np.ndarray, sheet: tuple[float, float], device: DeviceProfile) -> None:
