@@ -6,7 +6,8 @@ the pauses a program makes the device draw.  Reading the program back
 HP-GL and G-code know them already, since they emit exactly those points, rounded as the text
 rounds them: they record them in a :class:`Recorder`, one array per sweep, and
 :meth:`Recording.drawn` gives the same :class:`Drawn` arrays a read-back gives
-(:func:`from_interpretation`).  :func:`verify` compares the two: the read-back stays the oracle
+(:func:`~foldfab.programs.machine.from_interpretation`).  :func:`verify` compares the two: the read-back
+stays the oracle
 (``foldfab export --verify``, and ``foldfab plot`` before it sends).
 """
 
@@ -22,7 +23,6 @@ if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import Frame
-    from foldfab.programs.machine import Interpretation
 
 TOLERANCE_MM = 1e-6
 """How far a point recorded by the writer may be from the one read back (float rounding of the
@@ -49,20 +49,6 @@ class Drawn:
     """(T,): the stroke each move leads to (the stroke count for the last ones)."""
     pauses: tuple[str, ...]
     """The operator's messages, in order."""
-
-
-def from_interpretation(run: Interpretation) -> Drawn:
-    """The arrays of a program read back."""
-    import numpy as np
-
-    names: dict[str, int] = {}
-    layers = np.array([names.setdefault(s.layer, len(names)) for s in run.strokes], dtype=np.intp)
-    sizes = np.array([len(s.points) for s in run.strokes], dtype=np.intp)
-    points = np.concatenate([s.points for s in run.strokes]) if run.strokes else np.zeros((0, 2))
-    travels = np.array([(*t.start, *t.end) for t in run.travels], dtype=float).reshape(-1, 4)
-    return Drawn(points, np.cumsum(sizes) - sizes, np.array([s.speed for s in run.strokes], dtype=float),
-                 layers, tuple(names), travels, np.array([t.next_stroke for t in run.travels], dtype=np.intp),
-                 tuple(p.message for p in run.pauses))
 
 
 @dataclass

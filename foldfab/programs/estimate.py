@@ -246,7 +246,7 @@ def planned_segments(points: np.ndarray, starts: np.ndarray, speeds: np.ndarray,
 
 def estimate(interpretation: Interpretation, device: DeviceProfile) -> Estimate:
     """Estimate the run time of ``interpretation`` on ``device``."""
-    from foldfab.programs.drawing import from_interpretation
+    from foldfab.programs.machine import from_interpretation
 
     return estimate_drawn(from_interpretation(interpretation), device)
 

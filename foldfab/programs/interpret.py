@@ -17,8 +17,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Iterator
 
 from foldfab.errors import FoldfabError
-from foldfab.programs.drawing import Drawn, from_interpretation, verify as verify_drawn
-from foldfab.programs.machine import Interpretation, Machine
+from foldfab.programs.drawing import Drawn, verify as verify_drawn
+from foldfab.programs.machine import Interpretation, Machine, from_interpretation
 from foldfab.programs.read_ebb import EbbMachine, ebb_commands
 from foldfab.programs.read_gcode import GcodeMachine
 from foldfab.programs.read_gpgl import GPGLMachine, GPGLTokenizer

@@ -15,7 +15,7 @@ from foldfab.design import load_design
 from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.fabricate import fabricate
-from foldfab.programs.drawing import from_interpretation
+from foldfab.programs.machine import from_interpretation
 from foldfab.programs.estimate import estimate, estimate_drawn
 from foldfab.programs.interpret import drawn, interpret
 from foldfab.programs.languages import write_program
