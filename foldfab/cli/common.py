@@ -16,7 +16,9 @@ def _design(args: argparse.Namespace):
     from foldfab.design import build_design
     from foldfab.fabrication.spec import job_spec
     from foldfab.job import load_job
+    from foldfab.limits import release_large_blocks
 
+    release_large_blocks()   # a large design's temporaries go back to the system: every later stage needs less
     job = load_job(args.job)
     job_spec(job)
     return build_design(job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)

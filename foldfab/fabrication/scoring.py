@@ -183,7 +183,10 @@ def _straight_pairs(at: np.ndarray, unit: np.ndarray, real: np.ndarray, extra: i
     first = np.repeat(np.arange(size), later)  # every pair of slots at one vertex: first < second
     second = first + 1 + np.arange(len(first)) - np.repeat(np.cumsum(later) - later, later)
     del later
-    cost = np.where(real[first] & real[second], (unit[first] * unit[second].conj()).real, 2.0)
+    cost = np.empty(len(first))
+    for part in range(0, len(first), 1 << 20):   # in slices: the complex temporaries are 16 bytes a pair
+        a, b = first[part:part + (1 << 20)], second[part:part + (1 << 20)]
+        cost[part:part + len(a)] = np.where(real[a] & real[b], (unit[a] * unit[b].conj()).real, 2.0)
     order = np.lexsort((second, first, cost, at[first]))
     del cost
     first, second = first[order], second[order]
