@@ -137,6 +137,18 @@ def test_export_verify_refuses_a_corrupted_program_and_writes_nothing(tmp_path, 
     assert not out.exists()
 
 
+def test_plot_verifies_what_it_sends_and_sends_nothing_else(monkeypatch, capsys):
+    from foldfab.programs import languages
+
+    writer = languages.WRITERS["hpgl"]
+    rc, out, err = run(capsys, "plot", HEXAGON, "--device", "graphtec-ce6000", "--port", "sim://?time=instant")
+    assert rc == 0 and "estimate" in out, err
+    monkeypatch.setitem(languages.WRITERS, "hpgl",
+                        lambda plan, device: replace(writer(plan, device), text=corrupt(writer(plan, device).text, "hpgl")))
+    rc, out, err = run(capsys, "plot", HEXAGON, "--device", "graphtec-ce6000", "--port", "sim://?time=instant")
+    assert rc == 2 and "do not send it" in err and "estimate" not in out
+
+
 def test_a_program_without_a_record_is_read_back():
     device = load_device("silhouette-cameo-4")   # GP-GL: its writer does not record
     fab = fabricate(load_design(HEXAGON), device)
