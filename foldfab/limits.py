@@ -9,9 +9,10 @@ size (``foldfab.geometry.reflection.REL_TOL``), so a larger trajectory blurs its
 MAX_FACES = 2_000_000
 """The most faces a design may have unless the job (``[design].max_faces``) or the command
 line (``--max-faces``) allows more.  Twice the 1,000,000-face roll the benchmarks build.
-``foldfab design`` of 1,001,000 faces peaks at 1.8 GB (summary and penetration check, 21 s),
-so the limit is about 3.6 GB: a 10-million-face design ran out of memory after 6.5 GB and
-48 s; refused, it costs a moment (the count is known from the polylines alone)."""
+``foldfab design --fold`` of 1,001,000 faces peaks at 0.9 GB (summary, penetration check and
+FOLD file; 10 s of CPU), so the limit is about 1.8 GB: a 10-million-face design ran out of
+memory after 6.5 GB and 48 s; refused, it costs a moment (the count is known from the
+polylines alone)."""
 MAX_STROKES = 2_000_000
 """The most strokes (lines drawn, each perforation dash one) a program may have unless the
 job allows more (``[fabrication].max_strokes``).  The 1,000,000-face roll draws about a

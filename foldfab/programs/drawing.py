@@ -6,9 +6,8 @@ the pauses a program makes the device draw.  Reading the program back
 HP-GL and G-code know them already, since they emit exactly those points, rounded as the text
 rounds them: they record them in a :class:`Recorder`, one array per sweep, and
 :meth:`Recording.drawn` gives the same :class:`Drawn` arrays a read-back gives
-(:func:`~foldfab.programs.machine.from_interpretation`).  :func:`verify` compares the two: the read-back
-stays the oracle
-(``foldfab export --verify``, and ``foldfab plot`` before it sends).
+(:func:`~foldfab.programs.machine.from_interpretation`).  :func:`verify` compares the two: the
+read-back stays the oracle (``foldfab export --verify``, and ``foldfab plot`` before it sends).
 """
 
 from __future__ import annotations
