@@ -81,7 +81,7 @@ def _encode(value) -> str:
     """Compact JSON of ``value`` (as ``json.dumps`` with separators ``,`` and ``:``)."""
     if isinstance(value, dict):
         return "{" + ",".join(json.dumps(key) + ":" + _encode(item) for key, item in value.items()) + "}"
-    if isinstance(value, list) and any(isinstance(item, (dict, list, _Rows)) for item in value):
+    if isinstance(value, list) and value and isinstance(value[0], (dict, list, _Rows)):  # (FOLD's lists are of one kind)
         return "[" + ",".join(_encode(item) for item in value) + "]"
     if isinstance(value, _Rows):
         return _array_text(value)
