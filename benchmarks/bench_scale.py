@@ -42,10 +42,11 @@ def write_jobs(tmp: Path) -> dict[str, list[str]]:
             "export": ["export", str(tmp / "huge.toml"), "--device", str(tmp / "roll.toml"), "-o", str(tmp / "huge.plt")]}
 
 
-def measure(command: list[str], env: dict[str, str]) -> tuple[float, float, float]:
-    """Wall seconds, CPU seconds and peak MB of one run; it must succeed."""
+def measure(command: list[str], env: dict[str, str], folder: Path) -> tuple[float, float, float]:
+    """Wall seconds, CPU seconds and peak MB of one run in ``folder`` (not the repository:
+    ``python -m`` would import its foldfab whatever PYTHONPATH says); it must succeed."""
     start = time.perf_counter()
-    child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, cwd=ROOT)
+    child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, cwd=folder)
     _, status, usage = os.wait4(child.pid, 0)
     wall = time.perf_counter() - start
     if os.waitstatus_to_exitcode(status) != 0:
@@ -63,11 +64,11 @@ def main(rounds: int, base: Path | None, cases: list[str]) -> None:
         runs: dict[tuple[str, str], list[tuple[float, float, float]]] = {}
         yardstick = []
         for _ in range(rounds):
-            yardstick.append(measure([sys.executable, "-c", "import vpype"], dict(os.environ)))
+            yardstick.append(measure([sys.executable, "-c", "import vpype"], dict(os.environ), Path(tmp)))
             for case in cases:
                 for version, env in versions.items():
                     runs.setdefault((case, version), []).append(
-                        measure([sys.executable, "-m", "foldfab", *jobs[case]], env))
+                        measure([sys.executable, "-m", "foldfab", *jobs[case]], env, Path(tmp)))
         floor = statistics.median(w for w, _, _ in yardstick)
         cpu_floor = statistics.median(c for _, c, _ in yardstick)
         print(f"yardstick `python -c \"import vpype\"`: {floor:.2f} s wall, {cpu_floor:.2f} s CPU "
