@@ -162,14 +162,18 @@ class _GcodeWriter:
                 else sweep.tool.pen_down if sweep.tool.pen_down is not None else self.device.layers[sweep.name].pen_down)
         feed = sweep.tool.speed * 60
         power = self.number(sweep.tool.power * self.device.gcode.spindle_max) if self.device.laser else None
-        words = _xy_words(sweep.points)
         drawn = np.repeat(sweep.sizes > 1, sweep.sizes) if self.device.laser else slice(None)
         # as the text gives them: rounded to its decimals, the speed as its F word
         self.builder.recorder.strokes(np.round(sweep.points[drawn], GCODE_DECIMALS),
                                       sweep.sizes[sweep.sizes > 1] if self.device.laser else sweep.sizes,
                                       float(self.number(feed)) / 60, sweep.name)
+        for batch, sizes in sweep.batches():   # the words of a batch of lines at a time
+            self._lines(_xy_words(batch), sizes.tolist(), down, feed, power)
+
+    def _lines(self, words: list[str], sizes: list[int], down, feed: float, power: str | None) -> None:
+        """Lines of ``sizes`` points, their ``"X.. Y.."`` ``words`` one after another."""
         start = 0
-        for size in sweep.sizes.tolist():
+        for size in sizes:
             points = words[start:start + size]
             start += size
             if self.device.laser:

@@ -59,17 +59,17 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
         if tool.speed != speed:
             out.write(f"VS{velocity};")
             speed = tool.speed
-        # one rounding and one conversion to Python ints for the whole sweep, then slices
         rounded = np.rint(item.points).astype(np.int64)
         out.recorder.strokes(rounded, item.sizes, float(velocity) * 10, item.name)
-        units = rounded.ravel().tolist()
-        start = 0
-        for end in (2 * np.cumsum(item.sizes)).tolist():
-            rest = ",".join(map(str, units[start + 2:end]))
-            if len(rest) + 3 > limit:
-                rest = _split_pd(units[start + 2:end], limit, device)
-            out.write(f"PU{units[start]},{units[start + 1]};PD{rest};")
-            start = end
+        for units, sizes in item.batches(rounded):   # one conversion to Python ints per batch, then slices
+            units = units.ravel().tolist()
+            start = 0
+            for end in (2 * np.cumsum(sizes)).tolist():
+                rest = ",".join(map(str, units[start + 2:end]))
+                if len(rest) + 3 > limit:
+                    rest = _split_pd(units[start + 2:end], limit, device)
+                out.write(f"PU{units[start]},{units[start + 1]};PD{rest};")
+                start = end
     out.write(park)
     out.recorder.move(device.park_units)
     return out.build()

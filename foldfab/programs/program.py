@@ -100,6 +100,18 @@ class Sweep:
     points: np.ndarray
     sizes: np.ndarray
 
+    def batches(self, points: np.ndarray | None = None, count: int = 1 << 16):
+        """The lines ``count`` at a time: (their rows of ``points``, default :attr:`points`, and
+        each line's size), for writers that turn points into text (a Python object per
+        coordinate of a whole sweep would cost gigabytes)."""
+        import numpy as np
+
+        points = self.points if points is None else points
+        ends = np.cumsum(self.sizes)
+        for first in range(0, len(self.sizes), count):
+            last = min(first + count, len(self.sizes))
+            yield points[ends[first] - self.sizes[first]:ends[last - 1]], self.sizes[first:last]
+
     @property
     def lines(self) -> list[np.ndarray]:
         """Each line on its own (N, 2): for writers that work line by line anyway."""
@@ -124,6 +136,8 @@ class ProgramBuilder:
         self.recorder = Recorder(device.park_units) if record else None
         """Where the writer says what it draws (``record``: see :mod:`~foldfab.programs.drawing`)."""
         self.chunks: list[str] = []
+        self.blocks: list[str] = []
+        """Chunks joined a thousand at a time: a string per stroke costs its object header again."""
         self.offset = 0
         self.sections: list[Section] = []
         self.pauses: list[PauseMark] = []
@@ -131,6 +145,9 @@ class ProgramBuilder:
     def write(self, text: str) -> None:
         self.chunks.append(text)
         self.offset += len(text)
+        if len(self.chunks) >= 1024:
+            self.blocks.append("".join(self.chunks))
+            self.chunks = []
 
     def start(self, sweep: Sweep) -> None:
         self.sections.append(Section(self.offset, sweep.step, sweep.layer_id, sweep.name,
@@ -140,7 +157,7 @@ class ProgramBuilder:
         self.pauses.append(PauseMark(self.offset, stop.step, stop.message))
 
     def build(self) -> Program:
-        text = "".join(self.chunks)
+        text = "".join(self.blocks + self.chunks)
         text.encode("ascii")  # writers emit ASCII only; fail loudly otherwise
         return Program(text, self.protocol, self.device.name, tuple(self.sections),
                        tuple(self.pauses), self.recorder.record if self.recorder else None)

@@ -164,3 +164,16 @@ def test_the_read_back_refuses_a_program_drawing_at_another_speed():
     bad = replace(fab.program, text=fab.program.text.replace(speed.group(0), f"VS{int(speed.group(1)) + 1};", 1))
     with pytest.raises(FoldfabError, match=r"draws stroke 1 at \d+ mm/s, planned"):
         drawn(bad, device, fab.plan.sheet, verify=True)
+
+
+@pytest.mark.parametrize("count", [1, 2, 3, 1 << 16])
+def test_a_sweeps_batches_hold_its_lines_in_order(count):
+    from foldfab.programs.program import Sweep, sweeps
+
+    device = load_device("graphtec-ce6000")
+    fab = fabricate(load_design(HEXAGON), device)
+    for sweep in [item for item in sweeps(fab.plan, device) if isinstance(item, Sweep)]:
+        parts = list(sweep.batches(count=count))
+        assert len(parts) == -(-len(sweep.sizes) // count)
+        assert np.array_equal(np.concatenate([p for p, _ in parts]), sweep.points)
+        assert np.array_equal(np.concatenate([s for _, s in parts]), sweep.sizes)
