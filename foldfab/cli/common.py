@@ -16,7 +16,9 @@ def _design(args: argparse.Namespace):
     from foldfab.design import build_design
     from foldfab.fabrication.spec import job_spec
     from foldfab.job import load_job
+    from foldfab.limits import release_large_blocks
 
+    release_large_blocks()   # a large design's temporaries go back to the system: every later stage needs less
     job = load_job(args.job)
     job_spec(job)
     return build_design(job, allow_penetration=args.allow_penetration, max_faces=args.max_faces)
@@ -81,13 +83,15 @@ def _check_folder(path: Path, option: str) -> None:
         raise FoldfabError(f"{option} {path}: folder {path.parent} {what}")
 
 
-def fabrication_report(fab, device) -> dict:
-    """Per-layer lengths, travel before/after optimization and the time estimate of a fabrication."""
-    from foldfab.programs.estimate import estimate
-    from foldfab.programs.interpret import interpret
+def fabrication_report(fab, device, verify: bool = False) -> dict:
+    """Per-layer lengths, travel before/after optimization and the time estimate of a fabrication,
+    from what its writer recorded; ``verify``: from the program read back, refused unless it
+    draws what was recorded."""
+    from foldfab.programs.estimate import estimate_drawn
+    from foldfab.programs.interpret import drawn
 
-    run = interpret(fab.program, device, fab.plan.sheet)
-    times = estimate(run, device)
+    run = drawn(fab.program, device, fab.plan.sheet, verify)
+    times = estimate_drawn(run, device)
     return {
         "device": device.name,
         "strategy": fab.spec.strategy,
@@ -105,7 +109,7 @@ def fabrication_report(fab, device) -> dict:
                       "after": {k: round(v, 1) for k, v in fab.travel_after["layers"].items()},
                       "total_before": round(fab.travel_before["total"], 1),
                       "total_after": round(fab.travel_after["total"], 1)},
-        "pauses": [p.message for p in run.pauses],
+        "pauses": list(run.pauses),
         "estimated_time_s": round(times.total, 1),
         "lower_bound_s": round(times.lower_bound, 1),
         "program_bytes": len(fab.program.text),

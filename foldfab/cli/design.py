@@ -100,18 +100,17 @@ def cmd_export(args: argparse.Namespace) -> int:
     _check_output(output, "-o", PROGRAM_SUFFIXES[device.protocol])
     design, device, fabs = _fabricate_sheets(args, args.one_program)
     paths = sheet_paths(output, len(fabs))
+    infos = [fabrication_report(fab, device, args.verify) for fab in fabs]  # verified before a byte is written
     write_files([(path, fab.program.text.encode()) for path, fab in zip(paths, fabs)])
-    _report(args, device, fabs, paths)
+    _report(args, device, fabs, paths, infos)
     return 0
 
 
-def _report(args: argparse.Namespace, device, fabs: list, paths: list[Path]) -> None:
+def _report(args: argparse.Namespace, device, fabs: list, paths: list[Path], infos: list | None = None) -> None:
     """Print the fabrication report of each sheet (one, unless the design is split)."""
-    infos = []
-    for path, fab in zip(paths, fabs):
-        info = fabrication_report(fab, device)
+    infos = infos or [fabrication_report(fab, device) for fab in fabs]
+    for path, info in zip(paths, infos):
         info["written"] = str(path)
-        infos.append(info)
     if args.json:
         print(json.dumps(infos[0] if len(infos) == 1 else {"sheets": infos}, indent=2))
         return
@@ -161,6 +160,9 @@ def add_commands(sub) -> None:
 
     export = sub.add_parser("export", help="write the plotter program (HPGL or G-code) for a device",
                             description="Score and cut a design: write the program a plotter receives.")
+    export.add_argument("--verify", action="store_true",
+                        help="read the written program back and refuse it unless it draws what was planned "
+                             "(report and estimate from the read-back; slower: foldfab plot always does it)")
     _add_fabrication_args(export, "program file (.hpgl/.plt for HPGL devices, .gcode/.nc for G-code, .ebb for EBB, "
                                   ".gpgl for GP-GL)")
     export.set_defaults(func=cmd_export)

@@ -123,7 +123,7 @@ def _plot(args: argparse.Namespace, cancel, sending: list[bool], prompting: list
     if not port:
         raise FoldfabError(f"{device.name} has no port: give --port PORT (a serial port such as /dev/ttyUSB0, "
                            f"or the simulated plotter sim://), or set port in {device.source}")
-    info = fabrication_report(fab, device)
+    info = fabrication_report(fab, device, verify=True)   # what is sent is what was planned
     if args.preview:
         _write_preview(fab, device, Path(args.preview))
         info["written"] = args.preview

@@ -7,6 +7,8 @@ dashes as real cut segments.  Flat creases are never scored.
 
 from __future__ import annotations
 
+from array import array
+
 import numpy as np
 
 from foldfab.geometry.crease_pattern import CreasePattern
@@ -58,30 +60,42 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     pairs = np.concatenate([edges.reshape(-1, 2), np.column_stack([odd, np.full(len(odd), extra)])])
     # adjacency lists side by side (CSR): each vertex's neighbours in index order, then by edge;
     # slot k leaves vertex ends[order[k]] by edge ids[order[k]]
+    # (each temporary is let go once used: a million edges make arrays of tens of megabytes)
     ends, others = pairs.T.ravel(), pairs[:, ::-1].T.ravel()
     ids = np.tile(np.arange(len(pairs)), 2)
     order = np.lexsort((ids, others, ends))
-    offsets = np.searchsorted(ends[order], np.arange(count + 2))
+    at, to, ids = ends[order], others[order], ids[order]
+    del ends, others
+    offsets = np.searchsorted(at, np.arange(count + 2))
     slot = np.empty_like(order)
     slot[order] = np.arange(len(order))
     arrive = slot[(order + len(pairs)) % len(order)]  # the slot of the same edge at its other end
-    at, to = ends[order], others[order]
+    del slot, order
     placed = np.append(points, 0)  # (the extra vertex anywhere: its edges have no direction)
     steps = np.where(to < extra, placed[to] - placed[at], 0)
+    del placed
     lengths = np.abs(steps)
-    partner = _straight_pairs(at, np.divide(steps, lengths, out=np.zeros_like(steps), where=lengths > 0),
-                              to < extra, extra)
+    unit = np.divide(steps, lengths, out=steps, where=lengths > 0)  # in place: a zero step stays zero
+    del lengths
+    partner = _straight_pairs(at, unit, to < extra, extra)
+    del unit
     trails = _trails(at, to, arrive, partner, extra) if len(odd) else None  # (no odd vertex: all circuits)
     if trails is not None:
         return np.split(points[trails[0]], trails[1]) if len(trails[0]) else []
-    # (one more slot, after the last, is the one a walk "arrives" by at its start: no partner)
-    state = (ids[order].tolist(), arrive.tolist(), partner.tolist() + [-1], at.tolist() + [extra],
-             offsets[:-1].tolist(), offsets[1:].tolist(), [False] * len(pairs))
+    # (one more slot, after the last, is the one a walk "arrives" by at its start: no partner);
+    # machine-int arrays, not lists: a list holds an int object per slot (a million edges: a gigabyte)
+    state = (_ints(ids), _ints(arrive), _ints(np.append(partner, -1)), _ints(np.append(at, extra)),
+             _ints(offsets[:-1]), _ints(offsets[1:]), bytearray(len(pairs)))
     walks = _circuit(extra, extra, *state) if len(odd) else []  # every component with odd vertices
-    left = np.flatnonzero(~np.array(state[-1][:len(edges)], dtype=bool))  # closed components
+    left = np.flatnonzero(np.frombuffer(state[-1], dtype=bool)[:len(edges)] == 0)  # closed components
     for start in np.unique(edges[left].min(axis=1)).tolist():
         walks += _circuit(start, extra, *state)
     return [points[walk] for walk in walks]
+
+
+def _ints(values: np.ndarray) -> array:
+    """``values`` as a Python array of machine integers (indexed like a list, 8 bytes an entry)."""
+    return array("q", np.asarray(values, dtype=np.int64).tobytes())
 
 
 def _trails(at: np.ndarray, to: np.ndarray, arrive: np.ndarray, partner: np.ndarray,
@@ -115,8 +129,8 @@ def _trails(at: np.ndarray, to: np.ndarray, arrive: np.ndarray, partner: np.ndar
     return at[slots], np.flatnonzero(np.diff(pointer[slots])) + 1
 
 
-def _circuit(start: int, extra: int, edge: list[int], arrive: list[int], partner: list[int],
-             vertex: list[int], cursor: list[int], stop: list[int], used: list[bool]) -> list[list[int]]:
+def _circuit(start: int, extra: int, edge: array, arrive: array, partner: array,
+             vertex: array, cursor: array, stop: array, used: bytearray) -> list[list[int]]:
     """Hierholzer's Euler circuit from ``start`` over the unused edges, cut where it passes
     the ``extra`` vertex: the strokes, as lists of vertices (pieces of one vertex dropped).
     Slot lists as built in :func:`_chains`; marks the edges it walks used."""
@@ -168,9 +182,15 @@ def _straight_pairs(at: np.ndarray, unit: np.ndarray, real: np.ndarray, extra: i
     later = np.where(at < extra, np.searchsorted(at, at, side="right") - np.arange(size) - 1, 0)
     first = np.repeat(np.arange(size), later)  # every pair of slots at one vertex: first < second
     second = first + 1 + np.arange(len(first)) - np.repeat(np.cumsum(later) - later, later)
-    cost = np.where(real[first] & real[second], (unit[first] * unit[second].conj()).real, 2.0)
+    del later
+    cost = np.empty(len(first))
+    for part in range(0, len(first), 1 << 20):   # in slices: the complex temporaries are 16 bytes a pair
+        a, b = first[part:part + (1 << 20)], second[part:part + (1 << 20)]
+        cost[part:part + len(a)] = np.where(real[a] & real[b], (unit[a] * unit[b].conj()).real, 2.0)
     order = np.lexsort((second, first, cost, at[first]))
+    del cost
     first, second = first[order], second[order]
+    del order
     free = np.ones(size, dtype=bool)
     while len(first):  # each round pairs the best pair of free slots at every vertex
         keep = free[first] & free[second]

@@ -209,13 +209,19 @@ def grid_pattern(x: np.ndarray, y: np.ndarray, points: np.ndarray, flat_angle: f
     left = np.concatenate([h_left, s_left])
     right = np.concatenate([h_right, s_right])
     direction = np.concatenate([h_dir, s_dir])
+    del h_edges, s_edges, h_left, s_left, h_right, s_right, h_dir, s_dir, hj, hk, sj, sk
     present = (left >= 0) | (right >= 0)
-    edges, left, right, direction = edges[present], left[present], right[present], direction[present]
+    if not present.all():
+        edges, left, right, direction = edges[present], left[present], right[present], direction[present]
     faces, face_grid = faces[kept], face_grid[kept]
     border = (left < 0) | (right < 0)
     angle = np.zeros(len(edges))
     inner = ~border
-    angle[inner] = _fold_angles(normals[left[inner]], normals[right[inner]], direction[inner])
+    rows = np.flatnonzero(inner)
+    for part in range(0, len(rows), 1 << 20):   # in slices: a million faces' temporaries are (E, 3) each
+        e = rows[part:part + (1 << 20)]
+        angle[e] = _fold_angles(normals[left[e]], normals[right[e]], direction[e])
+    del direction
     flat_fold = inner & (np.abs(angle) > 180.0 - FLAT_FOLD_TOL)
     if np.any(flat_fold):
         e = int(np.argmax(flat_fold))

@@ -25,6 +25,10 @@ def _weld(points: np.ndarray, tol: float) -> np.ndarray:
     return ids
 
 
+CHUNK = 1 << 20
+"""Box-cell entries worked out at a time in :func:`candidate_pairs` (bounds its temporary arrays)."""
+
+
 def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Pairs (i < j) of 3D boxes that share a cell of a uniform grid sized to the boxes: every
     two boxes that overlap are among them."""
@@ -41,39 +45,66 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         if counts.sum() <= 16 * n + 1024:
             break
         cell *= 1.5
-    owner = np.repeat(np.arange(n), counts)
-    local = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    sy, sz = span[owner, 1], span[owner, 2]
-    cx = c_lo[owner, 0] + local // (sy * sz)
-    cy = c_lo[owner, 1] + (local // sz) % sy
-    cz = c_lo[owner, 2] + local % sz
-    base = np.array([cx.min(), cy.min(), cz.min()])
-    dims = np.array([cx.max(), cy.max(), cz.max()]) - base + 1
-    key = ((cx - base[0]) * dims[1] + (cy - base[1])) * dims[2] + (cz - base[2])
-    order = np.argsort(key, kind="stable")
-    key, owner = key[order], owner[order]
+    base = c_lo.min(axis=0)
+    dims = c_hi.max(axis=0) - base + 1
+    c_lo -= base
+    keys, owners = _cell_entries(c_lo, span, counts, dims)
+    order = np.argsort(keys, kind="stable")   # stable: each cell's boxes stay in increasing order
+    keys, owners = keys[order], owners[order]
+    del order
+    # Only cells holding two boxes or more make pairs: their runs of entries, one after another.
+    start = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1]]))
+    size = np.diff(start, append=len(keys))
+    del keys
+    start, size = start[size > 1], size[size > 1]
+    place = np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)  # within its run
+    owners = owners[np.repeat(start, size) + place]
+    size = np.repeat(size, size)
     pairs = []
-    idx = np.arange(len(key))
     shift = 1
+    idx = np.flatnonzero(place + 1 < size)
     while len(idx):
-        idx = idx[idx + shift < len(key)]
-        same = key[idx] == key[idx + shift]
-        idx = idx[same]
-        if len(idx):
-            pairs.append(np.column_stack([owner[idx], owner[idx + shift]]))
+        # a box is in a cell once and the runs are in increasing order: every pair is (smaller, larger)
+        pairs.append(owners[idx].astype(np.int64) * n + owners[idx + shift])
         shift += 1
+        idx = idx[place[idx] + shift < size[idx]]
     if not pairs:
         return np.zeros((0, 2), np.int64)
-    # A stable sort keeps each cell's boxes in increasing order, and a box is in a cell once:
-    # every pair is already (smaller, larger).
-    return _unique_pairs(np.concatenate(pairs), n)
+    return _decode_pairs(np.concatenate(pairs), n)
+
+
+def _cell_entries(c_lo: np.ndarray, span: np.ndarray, counts: np.ndarray, dims: np.ndarray) -> tuple:
+    """The cell (a key) and the box of every box-cell entry, boxes in order: box i (its lowest cell
+    ``c_lo[i]``, ``span[i]`` cells along each axis) covers ``counts[i]`` cells.  Worked out
+    :data:`CHUNK` entries at a time."""
+    keys, owners = [], []
+    ends = np.cumsum(counts)
+    first = 0
+    while first < len(counts):
+        last = max(int(np.searchsorted(ends, ends[first] - counts[first] + CHUNK, side="right")), first + 1)
+        part = slice(first, last)
+        sizes = counts[part]
+        owner = np.repeat(np.arange(first, last, dtype=np.int32), sizes)
+        local = np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+        sy, sz = span[owner, 1], span[owner, 2]
+        key = c_lo[owner, 0] + local // (sy * sz)
+        key = key * dims[1] + c_lo[owner, 1] + (local // sz) % sy
+        keys.append(key * dims[2] + c_lo[owner, 2] + local % sz)
+        owners.append(owner)
+        first = last
+    return np.concatenate(keys), np.concatenate(owners)
+
+
+def _decode_pairs(keys: np.ndarray, n: int) -> np.ndarray:
+    """Distinct pairs from their keys ``i * n + j``, as rows (i, j)."""
+    keys.sort()  # sort-based: np.unique hashes, far slower here
+    keys = keys[np.concatenate([[True], keys[1:] != keys[:-1]])] if len(keys) else keys
+    return np.column_stack([keys // n, keys % n])
 
 
 def _unique_pairs(pairs: np.ndarray, n: int) -> np.ndarray:
     """Distinct rows of an (P, 2) array of ids below ``n``."""
-    keys = np.sort(pairs[:, 0] * np.int64(n) + pairs[:, 1])  # sort-based: np.unique hashes, far slower here
-    keys = keys[np.concatenate([[True], keys[1:] != keys[:-1]])] if len(keys) else keys
-    return np.column_stack([keys // n, keys % n])
+    return _decode_pairs(pairs[:, 0] * np.int64(n) + pairs[:, 1], n)
 
 
 def _triangles_intersect(a: np.ndarray, b: np.ndarray, eps: float) -> np.ndarray:

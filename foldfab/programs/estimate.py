@@ -44,6 +44,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import DeviceProfile, Motion
+    from foldfab.programs.drawing import Drawn
     from foldfab.programs.machine import Interpretation
 
 CONTINUATION_ANGLE = math.radians(1.0)
@@ -77,20 +78,20 @@ class Estimate:
         return self.draw_time + self.travel_time + self.lift_time + self.link_wait
 
 
-def link_waits(strokes: list, motion_seconds: np.ndarray, device: DeviceProfile) -> np.ndarray:
+def link_waits(byte_ends: np.ndarray, motion_seconds: np.ndarray, device: DeviceProfile) -> np.ndarray:
     """Seconds each stroke waits for its bytes beyond its motion (``motion_seconds``: its draw,
-    lift and travel time).  Stroke k ends at ``T[k] = max(T[k-1] + m[k], L[k])`` (``L``: when its
-    last byte has arrived), that is ``T = M + max(0, max over j <= k of L[j] - M[j])`` with ``M``
-    the running motion total.  Zeros for strokes without byte offsets (not read from a program)."""
+    lift and travel time; ``byte_ends``: where in the program each stroke's bytes end).  Stroke k
+    ends at ``T[k] = max(T[k-1] + m[k], L[k])`` (``L``: when its last byte has arrived, the
+    program sent from its first byte), that is ``T = M + max(0, max over j <= k of L[j] - M[j])``
+    with ``M`` the running motion total."""
     import numpy as np
 
-    ends = np.array([s.end for s in strokes], dtype=float)
-    if not len(ends) or (ends < 0).any():
-        return np.zeros(len(ends))
+    if not len(byte_ends):
+        return np.zeros(0)
     line = device.serial
     byte_time = (1 + line.bytesize + (line.parity != "N") + line.stopbits) / line.baudrate
     motion = np.cumsum(motion_seconds)
-    done = motion + np.maximum.accumulate(np.maximum((ends - strokes[0].offset) * byte_time - motion, 0.0))
+    done = motion + np.maximum.accumulate(np.maximum(np.asarray(byte_ends, dtype=float) * byte_time - motion, 0.0))
     return np.maximum(np.diff(done, prepend=0.0) - motion_seconds, 0.0)
 
 
@@ -271,48 +272,52 @@ def planned_segments(points: np.ndarray, starts: np.ndarray, speeds: np.ndarray,
 def estimate(interpretation: Interpretation, device: DeviceProfile, link: bool = True) -> Estimate:
     """Estimate the run time of ``interpretation`` on ``device`` (``link``: with the waits for
     the serial line, :func:`link_waits`; without, motion only)."""
+    from foldfab.programs.machine import from_interpretation
+
+    return estimate_drawn(from_interpretation(interpretation), device, link)
+
+
+def estimate_drawn(drawn: Drawn, device: DeviceProfile, link: bool = True) -> Estimate:
+    """Estimate the run time on ``device`` of what a program draws (:class:`~foldfab.programs.drawing.Drawn`:
+    read back, or recorded by the writer; ``link`` as :func:`estimate`)."""
     import numpy as np
 
     motion = device.motion
-    strokes, travels = interpretation.strokes, interpretation.travels
-    names: dict[str, int] = {}  # layer name -> index, in order of first appearance
-    stroke_layers = np.array([names.setdefault(s.layer, len(names)) for s in strokes], dtype=np.intp)
-    speeds = np.array([s.speed for s in strokes], dtype=float)
-    sizes = np.array([len(s.points) for s in strokes], dtype=np.intp)
-    points = np.concatenate([s.points for s in strokes]) if strokes else np.zeros((0, 2))
-    starts = np.cumsum(sizes) - sizes
+    names = dict(zip(drawn.names, range(len(drawn.names))))  # layer name -> index, in order of first appearance
+    stroke_layers, speeds, points, starts = drawn.layers, drawn.speeds, drawn.points, drawn.starts
+    strokes = len(starts)
     if motion.junction_deviation is None:
         lengths, runs, owners, heads = polyline_runs(points, starts)
         run_times = move_times(runs, *move_limits(heads, speeds[owners], motion))
     else:
         lengths, run_times, owners = planned_segments(points, starts, speeds, motion)
-    seconds = np.bincount(owners, weights=run_times, minlength=len(strokes))
-    ends = np.array([(*t.start, *t.end) for t in travels], dtype=float).reshape(-1, 4)
+    seconds = np.bincount(owners, weights=run_times, minlength=strokes)
+    ends = drawn.travels
     steps = ends[:, 2:] - ends[:, :2]
     travel_lengths = np.hypot(steps[:, 0], steps[:, 1])
     moves = travel_times(steps, motion)
-    waits = np.zeros(len(strokes))
+    waits = np.zeros(strokes)
     if strokes:
-        leads_to = np.minimum(np.array([t.next_stroke for t in travels], dtype=np.intp), len(strokes) - 1)
+        leads_to = np.minimum(drawn.leads_to, strokes - 1)
         travel_layers = stroke_layers[leads_to]
-        if link:
-            waits = link_waits(strokes, seconds + 2 * motion.pen_lift_time
-                               + np.bincount(leads_to, weights=moves, minlength=len(strokes)), device)
+        if link and drawn.byte_ends is not None:
+            waits = link_waits(drawn.byte_ends, seconds + 2 * motion.pen_lift_time
+                               + np.bincount(leads_to, weights=moves, minlength=strokes), device)
     else:
-        if travels:
+        if len(ends):
             names["travel"] = 0
-        travel_layers = np.zeros(len(travels), dtype=np.intp)
+        travel_layers = np.zeros(len(ends), dtype=np.intp)
     count = len(names)
     lifts = np.bincount(stroke_layers, minlength=count)
-    drawn = np.bincount(stroke_layers, weights=lengths, minlength=count)
+    drawn_lengths = np.bincount(stroke_layers, weights=lengths, minlength=count)
     travelled = np.bincount(travel_layers, weights=travel_lengths, minlength=count)
     # each layer's strokes, then the travels that lead to it, each in order (bincount adds in order)
     times = np.bincount(np.concatenate([stroke_layers, travel_layers]),
                         weights=np.concatenate([seconds + 2 * motion.pen_lift_time + waits, moves]),
                         minlength=count)
-    layers = {name: LayerTime(float(drawn[i]), int(lifts[i]), float(travelled[i]), float(times[i]))
+    layers = {name: LayerTime(float(drawn_lengths[i]), int(lifts[i]), float(travelled[i]), float(times[i]))
               for name, i in names.items()}
-    lift_time = 2 * motion.pen_lift_time * len(strokes)
+    lift_time = 2 * motion.pen_lift_time * strokes
     lower = _running_total(lengths / speeds)
     return Estimate(_running_total(seconds), float(moves.sum()), lift_time,
                     lower + lift_time, layers, _running_total(waits))

@@ -80,7 +80,7 @@ class _GcodeWriter:
 
     def __init__(self, device: DeviceProfile):
         self.device = device
-        self.builder = ProgramBuilder("gcode", device)
+        self.builder = ProgramBuilder("gcode", device, record=True)
         self.motion: str | None = None
         self.feed: float | None = None
         self.position: str | None = None  # "X.. Y.." of the last move
@@ -144,7 +144,9 @@ class _GcodeWriter:
 
     def park(self) -> None:
         self.pen_up()
-        self.travel(_xy_words(np.asarray([self.device.motion.park]))[0])
+        park = np.asarray([self.device.motion.park])
+        self.travel(_xy_words(park)[0])
+        self.builder.recorder.move(tuple(np.round(park[0], GCODE_DECIMALS).tolist()))
 
     def sweep(self, sweep: Sweep) -> None:
         self.builder.start(sweep)
@@ -160,11 +162,20 @@ class _GcodeWriter:
                 else sweep.tool.pen_down if sweep.tool.pen_down is not None else self.device.layers[sweep.name].pen_down)
         feed = sweep.tool.speed * 60
         power = self.number(sweep.tool.power * self.device.gcode.spindle_max) if self.device.laser else None
-        words = _xy_words(np.concatenate(sweep.lines)) if sweep.lines else []
+        drawn = np.repeat(sweep.sizes > 1, sweep.sizes) if self.device.laser else slice(None)
+        # as the text gives them: rounded to its decimals, the speed as its F word
+        self.builder.recorder.strokes(np.round(sweep.points[drawn], GCODE_DECIMALS),
+                                      sweep.sizes[sweep.sizes > 1] if self.device.laser else sweep.sizes,
+                                      float(self.number(feed)) / 60, sweep.name)
+        for batch, sizes in sweep.batches():   # the words of a batch of lines at a time
+            self._lines(_xy_words(batch), sizes.tolist(), down, feed, power)
+
+    def _lines(self, words: list[str], sizes: list[int], down, feed: float, power: str | None) -> None:
+        """Lines of ``sizes`` points, their ``"X.. Y.."`` ``words`` one after another."""
         start = 0
-        for line in sweep.lines:
-            points = words[start:start + len(line)]
-            start += len(points)
+        for size in sizes:
+            points = words[start:start + size]
+            start += size
             if self.device.laser:
                 if len(points) == 1:
                     continue  # a laser burns only while it moves (M4): it has no dots
@@ -176,5 +187,6 @@ class _GcodeWriter:
             if len(points) > 2:  # G1 and F are modal: the rest are bare coordinates
                 self.builder.write("\n".join(points[2:]) + "\n")
             self.position = points[-1]
+            self.builder.recorder.ended(self.builder.offset)  # the next command lifts the tool
             if not self.device.laser:
                 self.pen_up()

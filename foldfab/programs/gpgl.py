@@ -67,10 +67,9 @@ def write_gpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
             offset = round(device.gpgl.blade_offset[settings.pen - 1] * device.units_per_mm)
             out.write(f"FC{offset},1,{settings.pen}{ETX}" if holders > 1 else f"FC{offset}{ETX}")
             offsets_set.add(settings.pen)
-        units = np.rint(np.concatenate(item.lines)).astype(np.int64).ravel().tolist()
+        units = np.rint(item.points).astype(np.int64).ravel().tolist()
         start = 0
-        for line in item.lines:
-            end = start + 2 * len(line)
+        for end in (2 * np.cumsum(item.sizes)).tolist():
             pairs = [f"{x},{y}" for x, y in zip(units[start:end:2], units[start + 1:end:2])]
             out.write(f"M{pairs[0]}{ETX}D" + f"{ETX}D".join(pairs) + ETX)
             start = end

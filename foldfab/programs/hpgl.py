@@ -34,7 +34,7 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
     import numpy as np
 
     items = sweeps(plan, device)
-    out = ProgramBuilder("hpgl", device)
+    out = ProgramBuilder("hpgl", device, record=True)
     park_x, park_y = device.park_units
     park = f"PU{park_x},{park_y};SP0;"
     limit = device.buffer.instruction_limit
@@ -43,6 +43,7 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
     for item in items:
         if isinstance(item, Stop):
             out.write(park)
+            out.recorder.move(device.park_units)
             pen = 0
             out.pause(item)
             continue
@@ -54,20 +55,24 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
         if tool.force is not None and tool.force != force:
             out.write(f"FS{fmt_number(tool.force, 0)};")
             force = tool.force
+        velocity = fmt_number(tool.speed / 10, SPEED_DECIMALS[device.dialect])
         if tool.speed != speed:
-            out.write(f"VS{fmt_number(tool.speed / 10, SPEED_DECIMALS[device.dialect])};")
+            out.write(f"VS{velocity};")
             speed = tool.speed
-        # one rounding and one conversion to Python ints for the whole sweep, then slices
-        units = np.rint(np.concatenate(item.lines)).astype(np.int64).ravel().tolist()
-        start = 0
-        for line in item.lines:
-            end = start + 2 * len(line)
-            rest = ",".join(map(str, units[start + 2:end]))
-            if len(rest) + 3 > limit:
-                rest = _split_pd(units[start + 2:end], limit, device)
-            out.write(f"PU{units[start]},{units[start + 1]};PD{rest};")
-            start = end
+        rounded = np.rint(item.points).astype(np.int64)
+        out.recorder.strokes(rounded, item.sizes, float(velocity) * 10, item.name)
+        for units, sizes in item.batches(rounded):   # one conversion to Python ints per batch, then slices
+            units = units.ravel().tolist()
+            start = 0
+            for end in (2 * np.cumsum(sizes)).tolist():
+                rest = ",".join(map(str, units[start + 2:end]))
+                if len(rest) + 3 > limit:
+                    rest = _split_pd(units[start + 2:end], limit, device)
+                out.write(f"PU{units[start]},{units[start + 1]};PD{rest};")
+                out.recorder.ended(out.offset)  # the next command lifts the pen
+                start = end
     out.write(park)
+    out.recorder.move(device.park_units)
     return out.build()
 
 

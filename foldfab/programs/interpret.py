@@ -17,7 +17,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Iterator
 
 from foldfab.errors import FoldfabError
-from foldfab.programs.machine import Interpretation, Machine
+from foldfab.programs.drawing import Drawn, verify as verify_drawn
+from foldfab.programs.machine import Interpretation, Machine, from_interpretation
 from foldfab.programs.read_ebb import EbbMachine, ebb_commands
 from foldfab.programs.read_gcode import GcodeMachine
 from foldfab.programs.read_gpgl import GPGLMachine, GPGLTokenizer
@@ -51,6 +52,20 @@ def interpret(program: Program | str, device: DeviceProfile,
     machine = MACHINES[device.protocol](device, frame, known)
     machine.position = device.park_units  # where the last job left the pen, as the optimizer assumes
     return machine.run(text)
+
+
+def drawn(program: Program, device: DeviceProfile, sheet: tuple[float, float] | None = None,
+          verify: bool = False) -> Drawn:
+    """What ``program`` draws on ``device`` (``sheet`` as for :func:`interpret`): as its writer
+    recorded it where it did (HP-GL, G-code), else read back.  ``verify`` reads it back anyway
+    and refuses a program whose read-back differs from the record."""
+    recorded = program.drawn(device.frame(sheet or device.sheet))
+    if recorded is not None and not verify:
+        return recorded
+    read = from_interpretation(interpret(program, device, sheet))
+    if recorded is not None:
+        verify_drawn(recorded, read, f"{program.protocol} program for {device.name}")
+    return read
 
 
 def pen_states(text: str, protocol: str, device: DeviceProfile) -> Iterator[tuple[int, Machine]]:

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import DeviceProfile, Frame
+    from foldfab.programs.drawing import Drawn
     from foldfab.programs.program import PauseMark, Program, Section
 
 _CHUNK = 1 << 16
@@ -106,6 +107,24 @@ class Interpretation:
     @property
     def pen_downs(self) -> int:
         return len(self.strokes)
+
+
+def from_interpretation(run: Interpretation) -> Drawn:
+    """The arrays of a program read back."""
+    import numpy as np
+
+    from foldfab.programs.drawing import Drawn
+
+    names: dict[str, int] = {}
+    layers = np.array([names.setdefault(s.layer, len(names)) for s in run.strokes], dtype=np.intp)
+    sizes = np.array([len(s.points) for s in run.strokes], dtype=np.intp)
+    points = np.concatenate([s.points for s in run.strokes]) if run.strokes else np.zeros((0, 2))
+    travels = np.array([(*t.start, *t.end) for t in run.travels], dtype=float).reshape(-1, 4)
+    return Drawn(points, np.cumsum(sizes) - sizes, np.array([s.speed for s in run.strokes], dtype=float),
+                 layers, tuple(names), travels, np.array([t.next_stroke for t in run.travels], dtype=np.intp),
+                 tuple(p.message for p in run.pauses),
+                 np.array([s.end for s in run.strokes], dtype=np.intp)
+                 if all(s.end >= 0 for s in run.strokes) else None)
 
 
 class Machine:

@@ -21,18 +21,20 @@ expands ``passes`` and inserts tool-change pauses for devices without a pen chan
 from __future__ import annotations
 
 import bisect
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from operator import attrgetter
 from typing import TYPE_CHECKING, Union
 
 from foldfab.errors import FoldfabError
 from foldfab.devices import Tool
 from foldfab.fabrication.plan import Pass, Pause, PlotPlan, device_steps
+from foldfab.programs.drawing import Recorder, Recording
 
 if TYPE_CHECKING:
     import numpy as np
 
     from foldfab.devices import DeviceProfile, Frame
+    from foldfab.programs.drawing import Drawn
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,15 @@ class Program:
     device: str
     sections: tuple[Section, ...]
     pauses: tuple[PauseMark, ...]
+    recording: Recording | None = field(default=None, compare=False, repr=False)
+    """What the writer drew, as it wrote it (HP-GL and G-code writers record; None otherwise)."""
+
+    def drawn(self, frame: Frame) -> Drawn | None:
+        """What the program draws on the sheet ``frame`` maps to, as its writer recorded it (no
+        read-back); None when the writer did not record."""
+        if self.recording is None:
+            return None
+        return self.recording.drawn(frame, tuple(p.message for p in self.pauses))
 
     def encode(self) -> bytes:
         """The bytes to send."""
@@ -78,14 +89,35 @@ class Program:
 
 @dataclass(frozen=True)
 class Sweep:
-    """Draw ``lines`` (device units, each (N, 2) float) once with ``tool``."""
+    """Draw a layer's lines once with ``tool``: ``points`` (M, 2; device units, float) holds
+    them one after another, line k ``sizes[k]`` points long (at least one)."""
 
     step: int
     layer_id: int
     name: str
     repeat: int
     tool: Tool
-    lines: list[np.ndarray]
+    points: np.ndarray
+    sizes: np.ndarray
+
+    def batches(self, points: np.ndarray | None = None, count: int = 1 << 16):
+        """The lines ``count`` at a time: (their rows of ``points``, default :attr:`points`, and
+        each line's size), for writers that turn points into text (a Python object per
+        coordinate of a whole sweep would cost gigabytes)."""
+        import numpy as np
+
+        points = self.points if points is None else points
+        ends = np.cumsum(self.sizes)
+        for first in range(0, len(self.sizes), count):
+            last = min(first + count, len(self.sizes))
+            yield points[ends[first] - self.sizes[first]:ends[last - 1]], self.sizes[first:last]
+
+    @property
+    def lines(self) -> list[np.ndarray]:
+        """Each line on its own (N, 2): for writers that work line by line anyway."""
+        import numpy as np
+
+        return np.split(self.points, np.cumsum(self.sizes)[:-1]) if len(self.sizes) else []
 
 
 @dataclass(frozen=True)
@@ -99,9 +131,13 @@ class Stop:
 class ProgramBuilder:
     """Accumulates program text and records section and pause offsets."""
 
-    def __init__(self, protocol: str, device: DeviceProfile):
+    def __init__(self, protocol: str, device: DeviceProfile, record: bool = False):
         self.protocol, self.device = protocol, device
+        self.recorder = Recorder(device.park_units) if record else None
+        """Where the writer says what it draws (``record``: see :mod:`~foldfab.programs.drawing`)."""
         self.chunks: list[str] = []
+        self.blocks: list[str] = []
+        """Chunks joined a thousand at a time: a string per stroke costs its object header again."""
         self.offset = 0
         self.sections: list[Section] = []
         self.pauses: list[PauseMark] = []
@@ -109,6 +145,9 @@ class ProgramBuilder:
     def write(self, text: str) -> None:
         self.chunks.append(text)
         self.offset += len(text)
+        if len(self.chunks) >= 1024:
+            self.blocks.append("".join(self.chunks))
+            self.chunks = []
 
     def start(self, sweep: Sweep) -> None:
         self.sections.append(Section(self.offset, sweep.step, sweep.layer_id, sweep.name,
@@ -118,10 +157,10 @@ class ProgramBuilder:
         self.pauses.append(PauseMark(self.offset, stop.step, stop.message))
 
     def build(self) -> Program:
-        text = "".join(self.chunks)
+        text = "".join(self.blocks + self.chunks)
         text.encode("ascii")  # writers emit ASCII only; fail loudly otherwise
         return Program(text, self.protocol, self.device.name, tuple(self.sections),
-                       tuple(self.pauses))
+                       tuple(self.pauses), self.recorder.record if self.recorder else None)
 
 
 def sweeps(plan: PlotPlan, device: DeviceProfile) -> list[Union[Sweep, Stop]]:
@@ -129,7 +168,7 @@ def sweeps(plan: PlotPlan, device: DeviceProfile) -> list[Union[Sweep, Stop]]:
     import numpy as np
 
     frame = device.frame(plan.sheet)
-    layers = {}
+    layers: dict[int, tuple[np.ndarray, np.ndarray]] = {}   # sheet points (complex) and line sizes
     for index, step in enumerate(plan.steps):
         if isinstance(step, Pass) and step.layer_id not in plan.document.layers:
             raise FoldfabError(
@@ -139,34 +178,32 @@ def sweeps(plan: PlotPlan, device: DeviceProfile) -> list[Union[Sweep, Stop]]:
         if isinstance(step, Pass):
             device.check_tool(step.tool, f"plan step {index + 1} ({step.name} pass)")
         if isinstance(step, Pass) and step.layer_id not in layers:
-            lines = [np.asarray(line, dtype=complex) for line in plan.document.layers[step.layer_id]]
-            layers[step.layer_id] = [line for line in lines if len(line)]
+            layers[step.layer_id] = _layer_arrays(plan.document.layers[step.layer_id])
         elif not isinstance(step, (Pass, Pause)):
             raise FoldfabError(f"plan step {index + 1} is a {type(step).__name__}, "
                                "expected a Pass or a Pause")
-    drawn = [line for lines in layers.values() for line in lines]
+    drawn = [points for points, _ in layers.values() if len(points)]
     if drawn:
         check_fits(np.concatenate(drawn), plan.sheet, device)
-    converted = {lid: _to_device(frame, lines) for lid, lines in layers.items()}
+    converted = {lid: (frame.to_device(points), sizes) for lid, (points, sizes) in layers.items()}
 
     result: list[Union[Sweep, Stop]] = []
     for index, step in device_steps(plan, device.tool_changer):
         if isinstance(step, Pause):
             result.append(Stop(index, step.message))
-        elif converted[step.layer_id]:
-            result.extend(Sweep(index, step.layer_id, step.name, repeat, step.tool,
-                                converted[step.layer_id]) for repeat in range(step.tool.passes))
+        elif len(converted[step.layer_id][1]):
+            result.extend(Sweep(index, step.layer_id, step.name, repeat, step.tool, *converted[step.layer_id])
+                          for repeat in range(step.tool.passes))
     return result
 
 
-def _to_device(frame: Frame, lines: list[np.ndarray]) -> list[np.ndarray]:
-    """Convert many lines with one vectorized transform."""
+def _layer_arrays(lines) -> tuple[np.ndarray, np.ndarray]:
+    """A layer's non-empty lines as one complex array and each line's point count."""
     import numpy as np
 
-    if not lines:
-        return []
-    points = frame.to_device(np.concatenate(lines))
-    return np.split(points, np.cumsum([len(line) for line in lines])[:-1])
+    sizes = np.fromiter(map(len, lines), dtype=np.int64, count=len(lines))
+    points = np.asarray(np.concatenate(lines) if len(lines) else [], dtype=complex)
+    return points, sizes[sizes > 0]
 
 
 def check_fits(points: np.ndarray, sheet: tuple[float, float], device: DeviceProfile) -> None:
