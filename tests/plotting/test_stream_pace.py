@@ -84,13 +84,15 @@ def test_estimate_within_a_tenth_of_the_plotters_clock(name, link_bound, tmp_pat
     """The estimate counts the serial line where it, not motion, sets the pace: within 10% of
     the simulated plotter's clock on a link-bound profile (motion instant: 9600 baud on the
     Graphtec, 115200 on GRBL) as on a motion-bound one (the profiles' own)."""
-    from foldfab.programs.estimate import estimate
+    from foldfab.programs.estimate import estimate, estimate_drawn
     from foldfab.programs.interpret import interpret
 
     profile = str(instant_motion(name, tmp_path)) if link_bound else name
     device = load_device(profile)
     fab = fabricated(VASE, profile)
     times = estimate(interpret(fab.program, device, fab.plan.sheet), device)
+    recorded = estimate_drawn(fab.program.drawn(device.frame(fab.plan.sheet)), device)  # export's route
+    assert recorded.link_wait == pytest.approx(times.link_wait, rel=1e-9, abs=1e-9)
     port = open_port(SIM, device)  # at the profile's own baud rate
     stream(port, fab.program, device)
     stats = port.simulator.stats

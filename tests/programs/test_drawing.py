@@ -30,13 +30,13 @@ RECORDING = ["hp7475a", "graphtec-ce6000", "roland-gx24", "grbl", "grbl-dragknif
 def identical(one, other) -> bool:
     """Two :class:`Drawn` with equal arrays."""
     return all(np.array_equal(getattr(one, key), getattr(other, key)) for key in
-               ("points", "starts", "speeds", "layers", "travels", "leads_to")) and \
+               ("points", "starts", "speeds", "layers", "travels", "leads_to", "byte_ends")) and \
         (one.names, one.pauses) == (other.names, other.pauses)
 
 
 def assert_same_estimate(recorded, read, device) -> None:
     ours, theirs = estimate_drawn(recorded, device), estimate_drawn(read, device)
-    for key in ("total", "draw_time", "travel_time", "lift_time", "lower_bound"):
+    for key in ("total", "draw_time", "travel_time", "lift_time", "lower_bound", "link_wait"):
         assert getattr(ours, key) == pytest.approx(getattr(theirs, key), rel=1e-9, abs=1e-9), key
     assert list(ours.layers) == list(theirs.layers)
     for name, layer in ours.layers.items():
