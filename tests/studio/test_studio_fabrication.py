@@ -20,13 +20,7 @@ from foldfab.studio.api import Studio
 from foldfab.studio.server import StudioServer
 from helpers import JOB_FOLDER
 from helpers.http import serving
-from helpers.browser import TIMEOUT_MS, chromium, colour_at, renders, studio_page, wait_fabrication, wait_render
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium() as browser:
-        yield browser
+from helpers.browser import TIMEOUT_MS, colour_at, renders, studio_page, wait_fabrication, wait_render
 
 
 @pytest.fixture

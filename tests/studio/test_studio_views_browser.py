@@ -7,14 +7,8 @@ import pytest
 
 from foldfab.studio.api import NEW_JOB, Studio
 from foldfab.studio.server import StudioServer
-from helpers.browser import chromium, load_job, pixel, renders, studio_page, wait_render
+from helpers.browser import load_job, pixel, renders, studio_page, wait_render
 from helpers.http import serving
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium() as browser:
-        yield browser
 
 
 @pytest.fixture
