@@ -6,7 +6,10 @@ Chromium with Playwright (the test extra; ``scripts/test`` installs Chromium):
 
 - docs/img/studio.png: the four views as the job opens, the profile's feasible band shaded;
 - docs/img/studio-tools.png: a sine profile from the profile tools (clamped to the band),
-  the 3D model half folded with its strain in red.
+  the 3D model half folded with its strain in red;
+- docs/img/studio-fabrication.png: the fabrication panel on the Graphtec, the job at scale 2.5
+  split across sheets, each sheet's piece on the crease pattern;
+- docs/img/studio-dry-run.png: the dry run's stroke slider at stroke 10.
 
 Nothing is saved: the studio only shows the job.
 """
@@ -52,11 +55,33 @@ def main() -> None:
             page.fill("#fold", "80")
             page.wait_for_function("document.body.dataset.fold === '0.8'")
             page.screenshot(path=str(OUT / "studio-tools.png"))
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            page.set_default_timeout(30_000)
+            page.goto(server.url)
+            page.wait_for_function("Number(document.body.dataset.renderCount) > 0 && " + DRAWN)
+            fabricated(page, lambda: page.select_option("#device", "graphtec-ce6000"))
+            fabricated(page, lambda: (page.fill("#fab-scale", "2.5"), page.select_option("#fab-split", "auto")))
+            page.screenshot(path=str(OUT / "studio-fabrication.png"))
+            fabricated(page, lambda: (page.fill("#fab-scale", "1"), page.select_option("#fab-split", "")))
+            page.click("#preview")
+            page.wait_for_function("document.querySelector('#preview-dialog').open && "
+                                   "document.body.dataset.dryrunStep === '0'")
+            page.fill("#dryrun-step", "10")
+            page.wait_for_function("document.body.dataset.dryrunStep === '10'")
+            page.screenshot(path=str(OUT / "studio-dry-run.png"))
             browser.close()
     finally:
         server.shutdown()
         server.server_close()
-    print(f"wrote {OUT / 'studio.png'} and {OUT / 'studio-tools.png'}")
+    print(f"wrote studio.png, studio-tools.png, studio-fabrication.png and studio-dry-run.png in {OUT}")
+
+
+def fabricated(page, change) -> None:
+    """Make ``change`` in the fabrication panel and wait until the panel has drawn its answer."""
+    before = page.evaluate("Number(document.body.dataset.fabricationCount || 0)")
+    change()
+    page.wait_for_function("n => Number(document.body.dataset.fabricationCount || 0) > n && "
+                           "!window.studio.inflight && !window.studio.fabrication.inflight", arg=before)
 
 
 if __name__ == "__main__":
