@@ -6,14 +6,39 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import threading
 
 from foldfab.cli.common import _add_max_faces, _add_scale_arg, _add_split_args, _fabricate, _int_from
+
+
+_OPENED = threading.local()
+"""``stores``: the queue stores the command running in this thread opened (:func:`_closing`
+closes them when it ends; a thread's own, since tests run commands side by side in threads)."""
 
 
 def _queue_store(args: argparse.Namespace):
     from foldfab.queue.location import open_queue
 
-    return open_queue(args.queue, wait=args.wait)
+    store = open_queue(args.queue, wait=args.wait)
+    _OPENED.__dict__.setdefault("stores", []).append(store)
+    return store
+
+
+def _closing(command):
+    """``command``, then every queue store it opened closed: a server's pool of connections at
+    once, never whenever it is collected (from whichever thread that happens in)."""
+    import functools
+
+    @functools.wraps(command)
+    def run(args: argparse.Namespace) -> int:
+        try:
+            return command(args)
+        finally:
+            stores = _OPENED.__dict__.get("stores", [])
+            while stores:
+                stores.pop().close()
+
+    return run
 
 
 def _when(seconds: float) -> str:
@@ -33,18 +58,13 @@ def cmd_queue_add(args: argparse.Namespace) -> int:
                                                             allow_penetration=args.allow_penetration,
                                                             max_faces=args.max_faces, split=args.split))
         snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
-        # no --port nor --plotter: any plotter of the profile (a worker without a port: the profile's)
-        new.append(NewJob(snapshot, args.port or device.port or "", args.priority, args.copies, args.plotter,
-                          any_plotter=not (args.port or args.plotter)))
+        new.append(NewJob.targeted(snapshot, args.port, args.plotter, device.port, args.priority, args.copies))
     store = _queue_store(args)
     ids = iter(store.add(new))
     for item in new:
         numbers = [next(ids) for _ in range(item.copies)]
         label = f"job {numbers[0]}" if len(numbers) == 1 else f"jobs {numbers[0]}-{numbers[-1]}"
-        where = (f"on plotter {item.plotter}" if item.plotter else f"at {item.port}" if not item.any_plotter else
-                 f"for any plotter of it (foldfab queue run --device {item.snapshot.device} --port PORT"
-                 + (f"; without --port: at {item.port})" if item.port else ")"))
-        print(f"queued {label}: {item.snapshot.name} on {item.snapshot.device} {where}, "
+        print(f"queued {label}: {item.snapshot.name} on {item.snapshot.device} {item.where()}, "
               f"{len(item.snapshot.program.text)} bytes, priority {item.priority} ({store.location})")
     return 0
 
@@ -65,10 +85,7 @@ def cmd_queue_list(args: argparse.Namespace) -> int:
     """List jobs in the queue, oldest first, a page at a time (``--after``, ``--limit``)."""
     store = _queue_store(args)
     limit = args.limit if args.limit is not None else 0 if args.json else LIST_LIMIT
-    try:
-        page = store.page(args.state, args.after, limit or None)
-    finally:
-        store.close()  # a server's pool of connections, at once rather than whenever it is collected
+    page = store.page(args.state, args.after, limit or None)
     jobs = page.jobs
     if args.json:
         print(json.dumps([job.as_dict() for job in jobs], indent=1))
@@ -386,7 +403,7 @@ def add_commands(sub) -> None:
     _add_scale_arg(add)
     _add_split_args(add, one_program=False)   # a split design: one job, a pause to load each sheet
     _add_max_faces(add)
-    add.set_defaults(func=cmd_queue_add)
+    add.set_defaults(func=_closing(cmd_queue_add))
 
     listing = commands.add_parser("list", parents=[common], help="list jobs")
     listing.add_argument("--state", choices=STATES, help="only jobs in this state")
@@ -395,12 +412,12 @@ def add_commands(sub) -> None:
                          help="only jobs with higher ids (the next page starts after the last job shown)")
     listing.add_argument("--limit", type=_int_from(0, MAX_JOB_ID, "expected a number of jobs"), metavar="N",
                          help=f"show at most N jobs, 0 for all (default {LIST_LIMIT}; --json: all)")
-    listing.set_defaults(func=cmd_queue_list)
+    listing.set_defaults(func=_closing(cmd_queue_list))
 
     show = commands.add_parser("show", parents=[common], help="one job and its event log")
     show.add_argument("id", type=job_id, metavar="ID")
     show.add_argument("--json", action="store_true", help="print JSON")
-    show.set_defaults(func=cmd_queue_show)
+    show.set_defaults(func=_closing(cmd_queue_show))
 
     for name, func, text in (("cancel", cmd_queue_cancel, "cancel a job (a running one stops safely)"),
                              ("retry", cmd_queue_retry, "queue a failed, cancelled or interrupted job again"),
@@ -410,7 +427,7 @@ def add_commands(sub) -> None:
                              ("remove", cmd_queue_remove, "delete a job that is not running")):
         action = commands.add_parser(name, parents=[common], help=text)
         action.add_argument("id", type=job_id, metavar="ID")
-        action.set_defaults(func=func)
+        action.set_defaults(func=_closing(func))
         if name in ("retry", "move"):
             action.add_argument("--restart", action="store_true",
                                 help="from the start on a new sheet, not from the last acknowledged stroke")
@@ -423,14 +440,14 @@ def add_commands(sub) -> None:
 
     clear = commands.add_parser("clear", parents=[common], help="delete finished jobs")
     clear.add_argument("--done", action="store_true", required=True, help="delete every done job")
-    clear.set_defaults(func=cmd_queue_clear)
+    clear.set_defaults(func=_closing(cmd_queue_clear))
 
     plotters = commands.add_parser("plotters", parents=[common], help="list the plotters and what each does",
                                    description="The plotters the workers registered (foldfab queue run --port PORT "
                                                "--name NAME): name, host, profile, port, and state: idle, drawing "
                                                "a job, paused in a job, or offline since when.")
     plotters.add_argument("--json", action="store_true", help="print JSON")
-    plotters.set_defaults(func=cmd_queue_plotters)
+    plotters.set_defaults(func=_closing(cmd_queue_plotters))
 
     migrate = commands.add_parser("migrate", parents=[common], help="move every job of another queue into this one",
                                   description="Move the jobs of another queue (such as the SQLite file of one "
@@ -438,7 +455,7 @@ def add_commands(sub) -> None:
                                               "PostgreSQL server), with their progress and logs, under new ids.  "
                                               "Stop the other queue's workers first.")
     migrate.add_argument("source", metavar="FROM", help="the queue the jobs leave: an SQLite file (or a URL)")
-    migrate.set_defaults(func=cmd_queue_migrate)
+    migrate.set_defaults(func=_closing(cmd_queue_migrate))
 
     run = commands.add_parser("run", parents=[common], help="plot queued jobs (a worker)",
                               description="Plot jobs in priority and arrival order, one at a time, with the "
@@ -466,4 +483,4 @@ def add_commands(sub) -> None:
     run.add_argument("--lease", type=lease, default=DEFAULT_LEASE, metavar="SECONDS",
                      help=f"a job whose worker is silent this long is interrupted (default {DEFAULT_LEASE:g}, "
                           f"at least {MIN_LEASE:g})")
-    run.set_defaults(func=cmd_queue_run)
+    run.set_defaults(func=_closing(cmd_queue_run))

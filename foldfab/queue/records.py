@@ -74,6 +74,23 @@ class NewJob:
     plotter: str | None = None
     any_plotter: bool = False
 
+    @classmethod
+    def targeted(cls, snapshot: Snapshot, port: str | None, plotter: str | None, profile_port: str | None,
+                 priority: int = 0, copies: int = 1) -> NewJob:
+        """A job for the plotter named ``plotter``, else the one at ``port``, else (neither) any
+        plotter of the snapshot's profile, which a worker without a port of its own runs at
+        ``profile_port`` (the profile's).  The one rule of ``queue add`` and the studio."""
+        return cls(snapshot, port or profile_port or "", priority, copies, plotter, not (port or plotter))
+
+    def where(self) -> str:
+        """Where the job runs, in words."""
+        if self.plotter:
+            return f"on plotter {self.plotter}"
+        if not self.any_plotter:
+            return f"at {self.port}"
+        return (f"for any plotter of it (foldfab queue run --device {self.snapshot.device} --port PORT"
+                + (f"; without --port: at {self.port})" if self.port else ")"))
+
 
 @dataclass(frozen=True)
 class JobRecord:

@@ -486,21 +486,17 @@ class Studio:
         from foldfab.queue.location import open_queue
 
         design, device, fab = self._fabricate(request)
-        port = field_of(request, "port", str, "") or device.port
-        if not port:
-            raise ApiError(f"{device.name} has no port: type one (a serial port such as /dev/ttyUSB0, or "
-                           f"sim://{device.name} for a simulated plotter), or set port in {device.source}",
-                           cause={"view": "file", "field": "port"})
         copies = number_of(request, "copies", 1, 1, MAX_COPIES)
         priority = number_of(request, "priority", 0, *PRIORITIES)
         snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
+        job = NewJob.targeted(snapshot, field_of(request, "port", str, ""), None, device.port, priority, copies)
         store = open_queue()
         try:
-            ids = store.add([NewJob(snapshot, port, priority, copies)])
+            ids = store.add([job])
         finally:
             store.close()
-        return {"ids": ids, "queue": str(store.location), "device": device.name, "port": port,
-                "program_bytes": len(fab.program.text)}
+        return {"ids": ids, "queue": str(store.location), "device": device.name, "port": job.port,
+                "where": job.where(), "program_bytes": len(fab.program.text)}
 
     def fit_template(self, request: dict) -> dict:
         """The request's template with sizes that leave its profile room (:func:`~foldfab.geometry.feasible.fit_template`):

@@ -308,10 +308,14 @@ def test_queue_add(studio, hexagon, tmp_path, monkeypatch):
     monkeypatch.setenv("FOLDFAB_QUEUE", str(tmp_path / "queue.sqlite3"))
     status, answer = call(studio, "/api/queue", {"job": hexagon, "device": "grbl", "port": "sim://grbl", "copies": 2})
     assert status == 200 and len(answer["ids"]) == 2 and answer["port"] == "sim://grbl"
+    assert answer["where"] == "at sim://grbl"
+    status, answer = call(studio, "/api/queue", {"job": hexagon, "device": "grbl"})  # no port: as queue add
+    assert status == 200 and answer["where"].startswith("for any plotter of it")
     store = SqliteQueueStore(tmp_path / "queue.sqlite3")
     try:
         jobs = store.jobs()
-        assert [j.state for j in jobs] == ["queued", "queued"] and jobs[0].name == hexagon["design"]["name"]
+        assert [j.state for j in jobs] == ["queued"] * 3 and jobs[0].name == hexagon["design"]["name"]
+        assert [j.any_plotter for j in jobs] == [False, False, True]
         assert store.snapshot(jobs[0].id).job_text.startswith("[design]")
     finally:
         store.close()

@@ -412,7 +412,7 @@ class Studio {
     const r = await this.post("/api/queue", { ...this.base(), port: $("#port").value, copies });
     if (r.status !== 200) return this.message(this.brief(r.json.error), true);
     const ids = r.json.ids;
-    this.message(`queued ${ids.length > 1 ? `jobs ${ids[0]}–${ids.at(-1)}` : `job ${ids[0]}`} on ${r.json.device} at ${r.json.port} (${r.json.queue})`);
+    this.message(`queued ${ids.length > 1 ? `jobs ${ids[0]}–${ids.at(-1)}` : `job ${ids[0]}`} on ${r.json.device} ${r.json.where} (${r.json.queue})`);
   }
 }
 
