@@ -18,3 +18,11 @@ def wait_for_handler(proc: subprocess.Popen, sig: int, timeout: float = 120.0) -
             return
         assert proc.poll() is None and time.monotonic() < deadline, "foldfab never installed its handlers"
         time.sleep(0.002)  # poll interval
+
+
+def wait_for(condition, timeout: float = 120.0) -> None:
+    """Wait until ``condition()`` holds (a state the test waits for, never a time); fail after ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)  # poll interval

@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 import random
 import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -20,6 +19,7 @@ from foldfab.queue.postgres import PostgresQueueStore
 from foldfab.queue.store import QueueBusy
 from foldfab.queue.worker import Worker, WorkerOptions
 from helpers.farm import add_jobs, check_farm, run_farm, snapshot
+from helpers.processes import wait_for
 
 
 class Quiet:
@@ -31,12 +31,6 @@ class Quiet:
     def answer(self, timeout): return None
     def job_ended(self, job, state, message): pass
 
-
-def wait_for(condition, timeout: float = 120.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)  # poll interval
 
 
 def test_a_waiting_worker_wakes_at_once_for_a_released_plotter_and_a_new_job(postgres_store):

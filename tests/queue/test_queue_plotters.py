@@ -23,6 +23,7 @@ from foldfab.queue.snapshot import make_snapshot, program_meta
 from foldfab.queue.worker import Worker, WorkerOptions
 from helpers import HEXAGON
 from helpers.cli import run as run_cli
+from helpers.processes import wait_for
 from helpers.queues import raw_sql
 
 TWO_STROKES = "IN;SP1;PU0,0;PD400,0;PU0,100;PD400,100;SP0;"
@@ -42,12 +43,6 @@ def elsewhere(token: str) -> WorkerId:
     """A worker on another host (its process cannot be checked from here: only its lease counts)."""
     return WorkerId("another-host", 4242, token)
 
-
-def wait_for(condition, timeout: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)  # poll interval
 
 
 def states(store) -> dict[str, tuple]:

@@ -30,7 +30,7 @@ from foldfab.queue.sqlite import SqliteQueueStore
 from foldfab.plotting.engines.base import StreamStopped
 from foldfab.queue.worker import PortUnavailable, Worker, WorkerOptions, rehearse, start_point
 from helpers import HEXAGON, ROOT
-from helpers.processes import wait_for_handler
+from helpers.processes import wait_for, wait_for_handler
 
 
 
@@ -143,12 +143,6 @@ def in_thread(worker: Worker) -> threading.Thread:
     thread.start()
     return thread
 
-
-def wait_for(condition, timeout: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)
 
 
 # --- resume arithmetic -------------------------------------------------------------------------
