@@ -23,16 +23,19 @@ _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 _NUMBER_BYTES = re.compile(_NUMBER.pattern.encode())
 # Parameters that read without error: numbers separated by commas, whitespace or the
 # next one's sign, and nothing else (the rule of HPGLTokenizer._command's loop).  Atomic
-# numbers and possessive repeats: a text that is not plain fails in linear time.
-_PLAIN = r"[\s,]*+(?:(?>{0})(?:[\s,]++(?>{0})|(?=[+-])(?>{0}))*+)?+[\s,]*+".format(_NUMBER.pattern)
+# groups around every repeat (never backtracked into): a text that is not plain fails in
+# linear time.  Written as (?>X*), not as the possessive X*+ it equals: before Python 3.11.5
+# (Debian 12 has 3.11.2) possessive repeats could leave a capture group wrong (CPython
+# gh-106052), and ``IN1,IN`` read group 2 as "1,".
+_PLAIN = r"(?>[\s,]*)(?>(?:(?>{0})(?>(?:(?>[\s,]+)(?>{0})|(?=[+-])(?>{0}))*))?)(?>[\s,]*)".format(_NUMBER.pattern)
 _PLAIN_PARAMS = re.compile(_PLAIN)
-_IDLE_SKIP = rb"[^A-Za-z\x1b\x80-\xff]*+"  # bytes the tokenizer passes over between commands
+_IDLE_SKIP = rb"(?>[^A-Za-z\x1b\x80-\xff]*)"  # bytes the tokenizer passes over between commands
 # A whole command as the byte-by-byte reader sees it from state "idle": bytes it skips,
 # a two-letter ASCII mnemonic other than LB, its complete parameter run (group 2 if just
 # integers between commas, as foldfab writes them, else group 3, plain), and the end of
 # that run: a ";" (consumed) or the first byte of whatever follows.
 _PLAIN_COMMAND = re.compile(_IDLE_SKIP + rb"(?![Ll][Bb])([A-Za-z]{2})"
-                            rb"(?:(-?\d++(?:,-?\d++)*+)|(" + _PLAIN.encode() + rb"))"
+                            rb"(?:((?>-?\d+(?:,-?\d+)*))|(" + _PLAIN.encode() + rb"))"
                             rb"(?:;|(?=[^0-9+\-.,\s]))")
 _SKIP = re.compile(_IDLE_SKIP)
 _NAMES: dict[bytes, str] = {}  # mnemonic bytes as read -> upper-case name
