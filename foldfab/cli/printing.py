@@ -16,18 +16,14 @@ from foldfab.cli.common import _add_max_faces, _add_split_args, _check_output, _
 def cmd_print(args: argparse.Namespace) -> int:
     """Write the printable template of a job."""
     from foldfab.errors import FoldfabError
-    from foldfab.fabrication.spec import job_spec
     from foldfab.job import load_job
     from foldfab.printing.output import SUFFIXES, template_pieces, write_template
-    from foldfab.printing.paper import PrintOptions, check_options, parse_paper
+    from foldfab.printing.paper import PrintOptions, check_options, job_print_scale, parse_paper
 
     output = Path(args.output)
     _check_output(output, "-o", SUFFIXES)
     paper, name, turnable = parse_paper(args.paper)
-    scale = args.scale
-    if scale is None:
-        job_scale = job_spec(load_job(args.job)).scale
-        scale = 1.0 if job_scale == "fit" else job_scale
+    scale = args.scale if args.scale is not None else job_print_scale(load_job(args.job))
     options = PrintOptions(paper, name, turnable, args.margin, args.overlap, scale, args.flat, args.mono)
     check_options(options)
     design = _design(args)

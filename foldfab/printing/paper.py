@@ -23,6 +23,15 @@ OVERLAP_MAX = 30.0
 """mm: the widest overlap between neighbouring tiles."""
 
 
+def job_print_scale(job) -> float:
+    """The scale a template of ``job`` prints at: its ``[fabrication].scale``, where a plotter's
+    "fit" (a scale for the plotter's sheet) prints at 1, true size."""
+    from foldfab.fabrication.spec import job_spec
+
+    scale = job_spec(job).scale
+    return 1.0 if scale == "fit" else scale
+
+
 @dataclass(frozen=True)
 class PrintOptions:
     """How a template is printed: paper size (mm, portrait), whether its orientation is

@@ -127,12 +127,10 @@ def dry_run_strokes(run) -> dict[str, Any]:
 def print_options(design: Design, paper: str):
     """The template's options as ``foldfab print JOB --paper PAPER`` takes them: the job's
     scale ("fit" prints at 1, true size)."""
-    from foldfab.fabrication.spec import job_spec
-    from foldfab.printing.paper import PrintOptions, check_options, parse_paper
+    from foldfab.printing.paper import PrintOptions, check_options, job_print_scale, parse_paper
 
     size, name, turnable = parse_paper(paper, "paper")
-    scale = job_spec(design.job).scale
-    options = PrintOptions(size, name, turnable, scale=1.0 if scale == "fit" else scale)
+    options = PrintOptions(size, name, turnable, scale=job_print_scale(design.job))
     check_options(options)
     return options
 
