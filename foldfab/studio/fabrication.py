@@ -72,14 +72,14 @@ def fabrication_answer(design: Design, device: DeviceProfile) -> dict[str, Any]:
     pattern), the piece each sheet holds when split, the tools, and the estimate of all sheets."""
     from foldfab.fabricate import fabricate_sheets
     from foldfab.fabrication.plan import Pass
-    from foldfab.programs.estimate import estimate
-    from foldfab.programs.interpret import interpret
+    from foldfab.programs.estimate import estimate_drawn
+    from foldfab.programs.interpret import drawn
 
     fabs = fabricate_sheets(design, device)
     sheets, layers = [], {}
     total = {"time_s": 0.0, "drawn_mm": 0.0, "travel_mm": 0.0, "pen_lifts": 0, "program_bytes": 0}
     for number, fab in enumerate(fabs, 1):
-        times = estimate(interpret(fab.program, device, fab.plan.sheet), device)
+        times = estimate_drawn(drawn(fab.program, device, fab.plan.sheet), device)  # as export reports it
         piece = fab.piece
         offset = piece.offset if piece is not None else np.zeros(2)
         box = None
@@ -111,17 +111,16 @@ def fabrication_answer(design: Design, device: DeviceProfile) -> dict[str, Any]:
 def dry_run_strokes(run) -> dict[str, Any]:
     """The strokes of an interpreted program (:func:`~foldfab.programs.interpret.interpret`) in
     the order the device draws them, for the dry run's stroke slider: flat sheet-mm points, where
-    each stroke starts in them, and each stroke's layer (an index into ``layers``)."""
-    strokes = run.strokes
-    count = sum(len(s.points) for s in strokes)
+    each stroke starts in them (and the end), and each stroke's layer (an index into ``layers``)."""
+    from foldfab.programs.machine import from_interpretation
+
+    count = sum(len(s.points) for s in run.strokes)
     if count > MAX_DRY_RUN_POINTS:
         return {"points": [], "starts": [], "layer": [], "layers": [], "omitted":
                 f"{count:,} stroke points: more than the {MAX_DRY_RUN_POINTS:,} the stroke slider shows"}
-    names: dict[str, int] = {}
-    layer = [names.setdefault(s.layer, len(names)) for s in strokes]
-    starts = np.cumsum([0] + [len(s.points) for s in strokes]).tolist()
-    points = np.concatenate([s.points for s in strokes]).round(3).ravel().tolist() if strokes else []
-    return {"points": points, "starts": starts, "layer": layer, "layers": list(names)}
+    arrays = from_interpretation(run)
+    return {"points": arrays.points.round(3).ravel().tolist(), "starts": [*arrays.starts.tolist(), count],
+            "layer": arrays.layers.tolist(), "layers": list(arrays.names)}
 
 
 def print_options(design: Design, paper: str):
