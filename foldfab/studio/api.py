@@ -253,14 +253,15 @@ class Studio:
 
     def _build(self, request: dict):
         """The request's design; penetration is an error unless ``allow_penetration``."""
-        from foldfab.design import build_design
+        from foldfab.design import LIMIT_ADVICE, build_design
 
         allow = field_of(request, "allow_penetration", bool, False)
         job = self._job(request)
+        studio_bound = job.max_faces is None or job.max_faces > STUDIO_MAX_FACES  # else the job's own limit
         try:
-            design = build_design(job, allow_penetration=True, max_faces=min(job.max_faces or STUDIO_MAX_FACES,
-                                                                             STUDIO_MAX_FACES),
-                                  limit_advice=STUDIO_LIMIT_ADVICE)
+            design = build_design(job, allow_penetration=True,
+                                  max_faces=STUDIO_MAX_FACES if studio_bound else job.max_faces,
+                                  limit_advice=STUDIO_LIMIT_ADVICE if studio_bound else LIMIT_ADVICE)
         except FoldfabError as exc:
             raise self._failure(job, str(exc)) from None
         if len(design.penetrations) and not allow:

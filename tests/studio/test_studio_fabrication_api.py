@@ -274,3 +274,11 @@ def test_a_design_too_large_for_the_studio_is_saved_unchecked(studio, hexagon, f
     status, answer = call(studio, "/api/save", {"job": hexagon, "target": str(folder / "large.toml")})
     assert status == 200 and answer["refused"] is None
     assert not (folder / "large.toml").read_text().startswith("#")
+
+
+
+def test_a_design_over_its_own_face_limit_is_refused_not_saved_unchecked(studio, hexagon, folder):
+    """The job's own [design].max_faces binds the command line too: that is a refusal."""
+    hexagon["design"]["max_faces"] = 10   # the hexagon has 32 faces
+    status, answer = call(studio, "/api/save", {"job": hexagon, "target": str(folder / "own.toml")})
+    assert status == 400 and "max_faces" in answer["refused"] and not (folder / "own.toml").exists()
