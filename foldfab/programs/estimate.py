@@ -26,7 +26,7 @@ two moves' directions.  Otherwise the one ``acceleration`` serves every directio
 
 The link: the plotter cannot finish a stroke before the program's bytes up to its end have
 come down the line (start, data, parity and stop bits per byte at the profile's ``[serial]``
-baud rate, counted from the first stroke's command), so on a slow line the link, not motion,
+baud rate, counted from the program's first byte), so on a slow line the link, not motion,
 sets the pace; :func:`link_waits` adds what each stroke waits for its bytes beyond its own
 motion, as if the plotter's buffer were as large as it needs (``link_wait``).
 
