@@ -38,23 +38,23 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
         return plan
     two_opt = method == "two-opt"
     steps = [step for _, step in device_steps(plan, tool_changer)]
-    theirs: dict = {}  # vpype's orders by layer and pen: the second plan often starts a layer where the first did
-    best = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, theirs, mixed=True)
+    orders: dict = {}  # each layer's sorts by pen: the second plan often starts a layer where the first did
+    best = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, orders, mixed=True)
     if not any(isinstance(step, Pass) and 1 < len(plan.document.layers[step.layer_id]) <= TWO_OPT_LINES
                for step in steps):
         return best
     # Layer by layer, the order that arrives and leaves by least may leave the next layer a worse
     # start (the star's valleys: 1 mm less, its mountains then 44 mm more): vpype's orders alone,
     # as before foldfab had its own sort, make the other plan, and the one that travels less wins.
-    before = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, theirs, mixed=False)
+    before = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, orders, mixed=False)
     return min((best, before), key=lambda p: travel(p, start, tool_changer)["total"])
 
 
 def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, start: complex,
-               keep_vertices: frozenset[str], theirs: dict, mixed: bool) -> PlotPlan:
+               keep_vertices: frozenset[str], cache: dict, mixed: bool) -> PlotPlan:
     """:func:`optimize_plan` of ``plan`` as the device runs it (``steps``), each layer in the best of
     :func:`_ours` and, on a layer of at most :data:`TWO_OPT_LINES` lines, :func:`_theirs` (``mixed``
-    false: :func:`_theirs` alone there; ``theirs`` keeps them by layer and pen)."""
+    false: :func:`_theirs` alone there; ``cache`` keeps both by layer and pen, computed once)."""
     doc = plan.document.clone()  # metadata only: layers are added below, in plan order
     pen = start
     # what the pen meets, in order: a layer to draw, or a pause (where the device parks it)
@@ -73,11 +73,13 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
         onward = _onward(meets[index + 1:], start, resolution)
         orders = []
         if 1 < len(result) <= TWO_OPT_LINES:
-            if (index, pen) not in theirs:
-                theirs[index, pen] = _theirs(result, two_opt, pen)
-            orders.append(theirs[index, pen])
+            if ("theirs", index, pen) not in cache:
+                cache["theirs", index, pen] = _theirs(result, two_opt, pen)
+            orders.append(cache["theirs", index, pen])
         if mixed or not orders:
-            orders[:0] = _ours(result, two_opt, pen, onward.goal())
+            if ("ours", index, pen) not in cache:
+                cache["ours", index, pen] = _ours(result, two_opt, pen, onward.goal())
+            orders[:0] = cache["ours", index, pen]
         # A sorted order backwards (each line reversed) has the same inner travel: take the
         # order and direction that arrive and leave by less.
         candidates = [_end_towards(_reloop(order, pen, resolution, onward), pen, onward)
