@@ -38,15 +38,15 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
         return plan
     two_opt = method == "two-opt"
     steps = [step for _, step in device_steps(plan, tool_changer)]
-    orders: dict = {}  # each layer's sorts by pen: the second plan often starts a layer where the first did
-    best = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, orders, mixed=True)
+    cache: dict = {}  # each layer's sorts by pen: the second plan often starts a layer where the first did
+    best = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, cache, mixed=True)
     if not any(isinstance(step, Pass) and 1 < len(plan.document.layers[step.layer_id]) <= TWO_OPT_LINES
                for step in steps):
         return best
     # Layer by layer, the order that arrives and leaves by least may leave the next layer a worse
     # start (the star's valleys: 1 mm less, its mountains then 44 mm more): vpype's orders alone,
     # as before foldfab had its own sort, make the other plan, and the one that travels less wins.
-    before = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, orders, mixed=False)
+    before = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, cache, mixed=False)
     return min((best, before), key=lambda p: travel(p, start, tool_changer)["total"])
 
 
