@@ -152,11 +152,10 @@ def _plot(args: argparse.Namespace, cancel, sending: list[bool], prompting: list
                       from_stroke=None if args.from_stroke is None else args.from_stroke - 1)
     except PlotStopped as stop:
         message = str(stop)
-        if stop.token:
-            if args.json:
-                print(json.dumps({"event": "resume_token", "token": stop.token, "stroke": stop.stroke,
-                                  "strokes": stop.strokes}), flush=True)
-            message += f"; to finish the job run: {shlex.join(_resume_command(args, port, stop.token))}"
+        if args.json:
+            print(json.dumps({"event": "resume_token", "token": stop.token, "stroke": stop.stroke,
+                              "strokes": stop.strokes}), flush=True)
+        message += f"; to finish the job run: {shlex.join(_resume_command(args, port, stop.token))}"
         kind = "stopped" if stop.exit_code == 130 else "error"
         print(f"foldfab: {kind}: {message}", file=sys.stderr)
         return stop.exit_code

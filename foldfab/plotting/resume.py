@@ -160,9 +160,9 @@ def load_state(token: str) -> ResumeState:
         test, expected = checks.get(key, (None, ""))
         if test is not None and not test(data[key]):
             raise FoldfabError(f"{where}: {key} = {_show(data[key])}: expected {expected}; {_DAMAGED}")
-    if data["stroke"] >= data["strokes"]:
-        raise FoldfabError(f"{where}: stroke = {data['stroke']}: expected less than strokes "
-                           f"({data['strokes']}): a finished plot has no state; {_DAMAGED}")
+    if data["stroke"] > data["strokes"]:
+        raise FoldfabError(f"{where}: stroke = {data['stroke']}: expected at most strokes "
+                           f"({data['strokes']}: every stroke drawn, the closing left); {_DAMAGED}")
     return ResumeState(**data)
 
 
@@ -231,8 +231,8 @@ def check_state(state: ResumeState, program: Program, job: str, device: DevicePr
     if (state.program_bytes, state.strokes) != (len(program.text), len(strokes)):
         raise FoldfabError(f"{where}: program_bytes = {state.program_bytes}, strokes = {state.strokes}: "
                            f"expected {len(program.text)} and {len(strokes)} (this program's); {_DAMAGED}")
-    # (load_state checked stroke < strokes) a pause is confirmed only once every stroke before it is done
-    before = sum(p.offset <= strokes[state.stroke].offset for p in program.pauses)
+    # (load_state checked stroke <= strokes) a pause is confirmed only once every stroke before it is done
+    before = sum(p.offset <= resume_cut(program, strokes, state.stroke) for p in program.pauses)
     if state.pauses_done > before:
         raise FoldfabError(f"{where}: pauses_done = {state.pauses_done}: expected at most {before} (the "
                            f"pauses before stroke {state.stroke + 1}); {_DAMAGED}")
@@ -245,25 +245,29 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
     Pauses the operator has not confirmed yet (beyond ``pauses_done``; by default every
     pause before the stroke counts as confirmed) are asked again before the tool moves.
     Strokes of the result are ``interpret(program).strokes[stroke:]``, in order, with the
-    same tool, force and speed.
+    same tool, force and speed.  At ``stroke == len(strokes)`` that is none: the result is
+    the program's closing alone (the tool lifted and put away, the head parked), which a
+    job whose every stroke was drawn before its stop still owes the plotter.
     """
     from foldfab.programs.interpret import interpret
     from foldfab.programs.program import PauseMark, Program
 
     strokes = interpret(program, device).strokes
-    if not 0 <= stroke < len(strokes):
+    if not 0 <= stroke <= len(strokes):
         raise FoldfabError(f"cannot resume at stroke {stroke + 1}: the program draws "
                            f"{len(strokes)} strokes")
-    target = strokes[stroke]
-    cut = target.offset
+    cut = resume_cut(program, strokes, stroke)
     text = program.text
     preamble = text[:program.sections[0].offset]  # IN; | units, modes and the tool up
     before = [p for p in program.pauses if p.offset <= cut]
     done = len(before) if pauses_done is None else pauses_done
-    pending = before[done:]
+    pending = before[done:] if stroke < len(strokes) else []  # nothing is left to draw after a pause
     pause_text = "" if not pending or program.protocol != "gcode" else "M0\n"
-    state, travel = _tool_state(program, device, cut), _travel(device, target.points[0], program.protocol)
     head = preamble + pause_text
+    state = travel = ""  # the closing (every stroke drawn) lifts the tool and parks by itself
+    if stroke < len(strokes):
+        state = _tool_state(program, device, cut)
+        travel = _travel(device, strokes[stroke].points[0], program.protocol)
     # HP-GL and GP-GL select the tool, then move (as the writers do); G-code's travel is a G0, so
     # the motion mode and feed are restored after it.
     prelude = head + (state + travel if program.protocol != "gcode" else travel + state)
@@ -281,6 +285,17 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
     sections += [replace(s, offset=s.offset + shift) for s in program.sections if s.offset > cut]
     return Program(prelude + text[cut:], program.protocol, program.device, tuple(sections),
                    tuple(pauses))
+
+
+def resume_cut(program: Program, strokes: list[Stroke], stroke: int) -> int:
+    """Offset in ``program`` (whose strokes are ``strokes``) from which a resume at ``stroke``
+    sends the original text: the stroke's start, or, with every stroke drawn
+    (``stroke == len(strokes)``), where the last one lifts the tool: the program's closing."""
+    if stroke < len(strokes):
+        return strokes[stroke].offset
+    if program.protocol == "ebb":  # its closing moves are relative to the last stroke: the homing parks
+        return len(program.text)
+    return strokes[-1].end if strokes else program.sections[0].offset
 
 
 def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke], stroke: int,
@@ -485,9 +500,10 @@ class ResumeAmbiguous(ResumeNotStarted):
 class PlotStopped(FoldfabError):
     """A plot stopped before its end, after the safe stop; ``token`` names its resume state."""
 
-    def __init__(self, stop: StreamStopped, token: str | None, stroke: int, strokes: int):
-        left = (f"{strokes - stroke} of {strokes} strokes left (resume token {token})" if token
-                else "every stroke was drawn")
+    def __init__(self, stop: StreamStopped, token: str, stroke: int, strokes: int):
+        left = (f"{strokes - stroke} of {strokes} strokes left" if stroke < strokes
+                else "every stroke was drawn, the closing (tool up, head parked) was not confirmed")
+        left += f" (resume token {token})"
         super().__init__(f"{stop}; {'tool lifted' if stop.lifted else 'the tool may still be down'}; {left}")
         self.stop, self.token, self.stroke, self.strokes = stop, token, stroke, strokes
         self.exit_code = stop.exit_code
@@ -525,18 +541,12 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
     if state is not None:
         check_state(state, program, job, device, strokes)
         first, found = _start(state, program, device, port, strokes, from_stroke, choose, settings)
-        if first >= len(strokes):  # the operator says the plotter drew the rest after its host lost it
-            from foldfab.plotting.engines.base import StreamResult
-
-            if events is not None:
-                end = len(program.text)
-                events(JobProgress(program, device).event("done", end, end, 0.0, message=found))
-            state.path.unlink(missing_ok=True)
-            return StreamResult(0, 0.0, 0.0, 0)
-        before = sum(p.offset <= strokes[first].offset for p in program.pauses)
+        before = sum(p.offset <= resume_cut(program, strokes, first) for p in program.pauses)
         # pauses confirmed, as far as they lie before the stroke resumed at (the operator may go back)
         confirmed = min(state.pauses_done, before)
-        note = f"resuming at stroke {first + 1} of {len(strokes)}" + (f": {found}" if found else "")
+        note = (f"resuming at stroke {first + 1} of {len(strokes)}" if first < len(strokes) else
+                f"all {len(strokes)} strokes are drawn: sending the closing (tool up, head parked)")
+        note += f": {found}" if found else ""
         sending = resume_program(program, device, first, confirmed)
         pending = before - confirmed
         state = replace(state, pauses_done=confirmed)
@@ -554,14 +564,10 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
         if pending and answered:  # the resumed program asks its pending pauses as one
             answered += pending - 1
         pauses_done = (state.pauses_done if state is not None else 0) + answered
-        token = None
-        if stroke < len(strokes):
-            token = state.token if state is not None else new_token()
-            save_state(ResumeState(token, str(Path(job).resolve()), device.name, port,
-                                   program_hash(program), len(program.text), stroke, len(strokes),
-                                   pauses_done, str(stop)[:REASON_MAX], locate=not stop.plotter_error))
-        elif state is not None:
-            state.path.unlink(missing_ok=True)
+        token = state.token if state is not None else new_token()
+        save_state(ResumeState(token, str(Path(job).resolve()), device.name, port,
+                               program_hash(program), len(program.text), stroke, len(strokes),
+                               pauses_done, str(stop)[:REASON_MAX], locate=not stop.plotter_error))
         raise PlotStopped(stop, token, stroke, len(strokes)) from None
     except FoldfabError as exc:  # before anything was sent: the port, or the plotter's state at connecting
         raise exc if state is None else ResumeNotStarted(exc, state.token) from None
@@ -582,6 +588,8 @@ def _start(state: ResumeState, program: Program, device: DeviceProfile, port: st
             raise FoldfabError(f"--from-stroke {from_stroke + 1}: expected a stroke of this job's "
                                f"{len(strokes)} (1 to {len(strokes)}), or {len(strokes) + 1}: every stroke is drawn")
         return from_stroke, "chosen by the operator (--from-stroke)"
+    if state.stroke == len(strokes):
+        return state.stroke, ""
     if not state.locate:
         return state.stroke, "the plotter reported an error, so where it stopped is not used"
     found = locate(program, device, port, state.stroke, state.pauses_done, strokes, **settings)

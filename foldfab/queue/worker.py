@@ -179,8 +179,7 @@ class StartPoint:
     """What to stream for a job: the whole program, or a resume program and how its byte
     offsets and pauses map back to the stored program."""
 
-    program: Program | None
-    """None: every stroke was drawn before the interruption."""
+    program: Program
     note: str
     confirmed: tuple[int, ...]
     """For each pause of the streamed program: stored pauses confirmed once it is answered."""
@@ -206,7 +205,7 @@ def start_point(program: Program, device: DeviceProfile, acked: int, pauses_done
     if not acked:
         return StartPoint(program, "started", tuple(range(1, len(program.pauses) + 1)))
     from foldfab.programs.interpret import interpret
-    from foldfab.plotting.resume import resume_program
+    from foldfab.plotting.resume import resume_cut, resume_program
 
     strokes = interpret(program, device).strokes
     stroke = bisect.bisect_right([s.end for s in strokes], acked)
@@ -216,16 +215,15 @@ def start_point(program: Program, device: DeviceProfile, acked: int, pauses_done
     found = f"; {found}" if found else ""
     lengths = [s.length for s in strokes]
     drawn = (sum(lengths[:stroke]), sum(lengths))
-    if stroke >= len(strokes):
-        return StartPoint(None, f"all {len(strokes)} strokes were drawn before the interruption{found}", (),
-                          stroke=stroke, drawn=drawn)
     resumed = resume_program(program, device, stroke, pauses_done)
-    cut = strokes[stroke].offset
+    cut = resume_cut(program, strokes, stroke)
     prelude = len(resumed.text) - (len(program.text) - cut)
     originals = [p.offset for p in program.pauses]
     counts = tuple(bisect.bisect_right(originals, cut + max(p.offset - prelude, 0)) for p in resumed.pauses)
-    return StartPoint(resumed, f"resumed at stroke {stroke + 1} of {len(strokes)} (byte {cut}){found}", counts,
-                      cut, prelude, stroke, drawn)
+    note = (f"resumed at stroke {stroke + 1} of {len(strokes)} (byte {cut})" if stroke < len(strokes) else
+            f"all {len(strokes)} strokes were drawn before the interruption: sending the closing "
+            "(tool up, head parked)")
+    return StartPoint(resumed, note + found, counts, cut, prelude, stroke, drawn)
 
 
 class _Heartbeat(threading.Thread):
@@ -417,8 +415,6 @@ class Worker:
             return self._end(job, heartbeat, "failed", f"cannot start: {exc}")
         self.ui.job_started(job, start.note)
         heartbeat.drawn = start.drawn
-        if start.program is None:
-            return self._end(job, heartbeat, "done", start.note)
         heartbeat.start()
         tracker = _Tracker(self, job, start, heartbeat)
         try:
@@ -526,14 +522,13 @@ def _rehearse_job(store: QueueStore, ui: WorkerUI, job: JobRecord, runner: Runne
         return "failed"
     ui.job_started(job, f"dry run on {DRY_RUN_PORT} instead of {job.port}: {start.note}")
     state, message = "done", "the simulated plotter finished it"
-    if start.program is not None:
-        try:
-            runner(start.program, device, DRY_RUN_PORT, events=ui.progress, cancel=threading.Event(),
-                   operator=lambda text: ui.paused(job, f"{text} (answered by the dry run)") or True)
-        except StreamStopped as exc:
-            state, message = stopped_state(exc), str(exc)
-        except FoldfabError as exc:  # the simulated plotter could not be opened
-            state, message = "failed", str(exc)
+    try:
+        runner(start.program, device, DRY_RUN_PORT, events=ui.progress, cancel=threading.Event(),
+               operator=lambda text: ui.paused(job, f"{text} (answered by the dry run)") or True)
+    except StreamStopped as exc:
+        state, message = stopped_state(exc), str(exc)
+    except FoldfabError as exc:  # the simulated plotter could not be opened
+        state, message = "failed", str(exc)
     ui.job_ended(job, state, message)
     return state
 

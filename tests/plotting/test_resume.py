@@ -77,8 +77,32 @@ def test_an_unconfirmed_pause_is_asked_again_before_the_tool_moves(name):
 def test_resume_program_refuses_a_stroke_that_does_not_exist():
     device = load_device("grbl")
     program = fabricated(str(ROOT / "jobs/star.toml"), "grbl").program
-    with pytest.raises(FoldfabError, match="cannot resume at stroke 37: the program draws 36 strokes"):
-        resume_program(program, device, 36)
+    with pytest.raises(FoldfabError, match="cannot resume at stroke 38: the program draws 36 strokes"):
+        resume_program(program, device, 37)
+
+
+@pytest.mark.parametrize("name", ["hp7475a", "graphtec-ce6000", "grbl", "grbl-laser", "axidraw-v3", *GPGL_DEVICES])
+def test_after_the_last_stroke_a_resume_sends_the_closing_and_parks(name):
+    """A plot stopped after its last stroke was acknowledged still owes the plotter its closing
+    (tool up and put away, head parked): the resume is that closing alone, and on the plotter
+    left at the last stroke's end it draws nothing and parks the head."""
+    device = load_device(name)
+    program = fabricated(str(ROOT / "jobs/star.toml"), name).program
+    strokes = strokes_of(program, device)
+    closing = resume_program(program, device, len(strokes))
+    assert strokes_of(closing, device) == [] and closing.pauses == ()
+    if device.protocol != "ebb":  # EBB's closing moves are relative: its homing parks instead
+        assert closing.text.endswith(program.text[strokes[-1].end:])
+    port = sim_port(device, "time=fast")  # the closing's homing runs on the plotter's clock, not the host's polls
+    unclosed = replace(program, text=program.text[:strokes[-1].end], pauses=())
+    stream(port, unclosed, device, operator=lambda message: True)
+    plotter = port.simulator
+    assert plotter.position != tuple(device.park_units)  # left at the last stroke
+    drawn = len(plotter.strokes)
+    stream(port, closing, device)
+    assert plotter.position == pytest.approx(device.park_units)
+    # nothing drawn: at most the tool left down at the last stroke's end is lifted where it stands
+    assert all(len(s.points) == 1 for s in plotter.strokes[drawn:])
 
 
 # --- faults: a clear message, the tool up, a resume that completes the drawing ------------------
@@ -324,6 +348,27 @@ def test_a_second_stop_updates_the_same_state(opened, state_home):
     assert same_strokes(last.strokes, want[second.value.stroke:])
 
 
+def test_a_stop_in_the_closing_keeps_its_token_and_the_resume_parks(opened, state_home):
+    """A fault after the last stroke (GRBL refuses the program's final ``M2``) is not "done": the
+    closing was not confirmed, so the stop keeps a token and its resume sends the closing alone."""
+    device = load_device("grbl")
+    job = str(ROOT / "jobs/star.toml")
+    program = fabricated(job, "grbl").program
+    lines = program.text.count("\n")
+    with pytest.raises(PlotStopped) as stop:
+        plot(program, device, job=job, port=f"sim://?time=instant&sheet=A3&error_at={lines}")
+    assert stop.value.stroke == stop.value.strokes == len(strokes_of(program, device))
+    assert "every stroke was drawn, the closing (tool up, head parked) was not confirmed" in str(stop.value)
+    assert load_state(stop.value.token).stroke == stop.value.strokes
+    events = []
+    plot(program, device, job=job, port="sim://?time=instant&sheet=A3", resume=stop.value.token, events=events.append)
+    plotter = opened[-1].simulator
+    assert plotter.strokes == [] and plotter.position == pytest.approx(device.park_units)
+    assert events[-1].kind == "done" and "sending the closing" in events[0].message
+    with pytest.raises(FoldfabError, match="no saved plot with that token"):
+        load_state(stop.value.token)
+
+
 def test_pauses_confirmed_before_the_stop_are_not_asked_again(opened, state_home):
     device = load_device("grbl")
     job = str(ROOT / "jobs/star.toml")
@@ -359,7 +404,7 @@ def resume_with(device, program, job: str = str(ROOT / "jobs/star.toml"), **kw):
 
 BAD_FIELDS = [
     ("stroke", "x"), ("stroke", 3.5), ("stroke", None), ("stroke", True), ("stroke", -1), ("stroke", [3]),
-    ("stroke", 36), ("stroke", 10 ** 30),  # at or past the end: not "done"
+    ("stroke", 37), ("stroke", 10 ** 30),  # past the end (36: every stroke drawn, the closing left)
     ("strokes", 0), ("strokes", "36"), ("strokes", 35), ("strokes", 37),
     ("pauses_done", "x"), ("pauses_done", -1), ("pauses_done", None), ("pauses_done", 1),
     ("job", None), ("job", 5), ("job", ""), ("job", "jobs/star.toml"), ("job", "/a\0b"),

@@ -164,8 +164,10 @@ def test_start_point_maps_resumed_offsets_and_pauses_back(snapshots, device):
         assert start.stroke == k and start.note.startswith(f"resumed at stroke {k + 1} of {len(strokes)}")
         assert len(start.program.pauses) == len(start.confirmed)
         assert start.confirmed == ((1,) if acked < flip else ())  # answering the flip confirms pause 1
-    last = start_point(snap.program, profile, strokes[-1].end, 1)
-    assert last.program is None and "all" in last.note
+    last = start_point(snap.program, profile, strokes[-1].end, 1)  # every stroke drawn, the closing not acked
+    assert interpret(last.program, profile).strokes == [] and last.note.startswith(f"all {len(strokes)} strokes")
+    assert last.program.text.endswith(snap.program.text[strokes[-1].end:])  # the program's own closing
+    assert last.original(len(last.program.text)) == len(snap.program.text)
 
 
 # --- running jobs --------------------------------------------------------------------------------
@@ -299,6 +301,22 @@ def test_plotter_error_fails_the_job_and_retry_resumes_it(store, snapshots, caps
     assert "resumes at byte" in capsys.readouterr().out
     assert Worker(store, Console(), WorkerOptions(), runner=plotter).run().ended == {"done": [1]}
     assert plotter.drawn["sim://a"] == original_strokes(snap)
+
+
+def test_a_job_stopped_after_its_last_stroke_resumes_with_its_closing(store, snapshots):
+    """Every stroke acknowledged but the program's last line refused: the job is not done until its
+    closing (tool up, head parked) is sent again and confirmed."""
+    snap = snapshots[("grbl", "force")]
+    store.add([NewJob(snap, f"sim://?time=instant&error_at={snap.program.text.count(chr(10))}")])
+    assert Worker(store, Console(), WorkerOptions()).run().ended == {"failed": [1]}
+    strokes = interpret(snap.program, load_device(snap.device)).strokes
+    assert strokes[-1].end <= store.job(1).acked_bytes < store.job(1).program_bytes
+    assert main(["queue", "retry", "1", "--queue", str(store.path)]) == 0
+    console = Console()
+    assert Worker(store, console, WorkerOptions()).run().ended == {"done": [1]}
+    assert f"start 1 all {len(strokes)} strokes were drawn before the interruption: sending the closing" \
+        in "\n".join(console.lines)
+    assert store.job(1).acked_bytes == store.job(1).program_bytes
 
 
 def test_port_that_cannot_be_opened_interrupts_without_touching_other_plotters(store, snapshots):

@@ -101,7 +101,8 @@ class EbbSender(Sender):
 
     def wait_idle(self, offset: int) -> None:
         """Ask ``QM`` until nothing executes, no motor moves and the FIFO is empty."""
-        deadline = time.monotonic() + self.patience(self.acked, offset)
+        patience = self.patience(self.acked, offset)
+        deadline = time.monotonic() + patience
         while True:
             answer = self.ask(b"QM\r", 1)[0]
             fields = answer.split(",")
@@ -111,7 +112,7 @@ class EbbSender(Sender):
                 self.acked = offset
                 return
             if time.monotonic() > deadline:
-                raise _Fault(f"{self.device.name} still moving {deadline:.0f} s after the last command")
+                raise _Fault(f"{self.device.name} still moving {patience:.0f} s after the last command")
             self.tick()
             self.cancel.wait(IDLE_POLL)
             self.check_cancel()
