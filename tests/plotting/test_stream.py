@@ -529,7 +529,7 @@ def test_host_cpu_stays_low_while_the_plotter_works(pty_plotter):
 
 
 @pytest.mark.parametrize("device_name, time_option", [
-    ("hp7475a", "instant"), ("hp7475a", "fast&speedup=10"), ("grbl", "fast&speedup=10"),
+    ("hp7475a", "instant"), ("grbl", "instant"), ("hp7475a", "fast&speedup=10"), ("grbl", "fast&speedup=10"),
     ("graphtec-ce6000", "fast&speedup=10")])
 def test_eta_is_on_the_clock_the_plotter_runs_on(device_name, time_option):
     """Issue 18: under sim://?time=fast the ETA mixed the simulated and the wall clock (1:12 at the

@@ -26,6 +26,7 @@ feed hold, the soft reset (which switches the spindle off) and the program's pre
 from __future__ import annotations
 
 import bisect
+import math
 import re
 import time
 from collections import deque
@@ -41,7 +42,9 @@ PLANNER_BLOCKS = 16
 """GRBL's planner holds 15 motion blocks besides the one executing: lines acknowledged
 after the 16th-last motion line may not have moved the machine yet."""
 STATUS_INTERVAL = 0.2
-"""At most 5 status queries a second."""
+"""At most 5 status queries a second, on the plotter's clock (a simulator's ``instant`` time
+runs ahead while the host waits, so a host-clock cadence would leave it unasked for long
+stretches of plotter time and its end would be seen late)."""
 GRBL_POSITION_TOLERANCE = 0.02
 """mm a GRBL status position may differ from the program's: a step (80 steps/mm) and the
 report's rounding."""
@@ -137,7 +140,7 @@ class GrblSender(Sender):
         self.machine_position: tuple[float, float, float] | None = None
         self.position_kind = "MPos"
         self.wco = (0.0, 0.0, 0.0)
-        self.last_query = 0.0
+        self.last_query = -math.inf  # plotter clock
         self.query_answered = 0  # lines answered when the outstanding "?" was sent
         self.querying = False
         self.unanswered_since: float | None = None  # the first "?" still without a report
@@ -175,10 +178,11 @@ class GrblSender(Sender):
     # -- replies ---------------------------------------------------------------------------
     def pump(self) -> None:
         """Ask the status when due, wait up to POLL for replies, handle them."""
-        now = time.monotonic()
-        if now - self.last_query >= STATUS_INTERVAL and (not self.querying or now - self.last_query > 1.0):
+        now, plotter_now = time.monotonic(), self.clock()
+        since = plotter_now - self.last_query
+        if since >= STATUS_INTERVAL and (not self.querying or since > 1.0):
             self.write(b"?")
-            self.last_query, self.querying, self.query_answered = now, True, self.answered
+            self.last_query, self.querying, self.query_answered = plotter_now, True, self.answered
             if self.unanswered_since is None:
                 self.unanswered_since = now
         elif (self.unanswered_since is not None and not self.stopping and not self.inbox  # (a reply arriving)
