@@ -8,6 +8,7 @@ dashes as real cut segments.  Flat creases are never scored.
 from __future__ import annotations
 
 from array import array
+from itertools import chain
 
 import numpy as np
 
@@ -21,13 +22,40 @@ def crease_lines(cp: CreasePattern, kind: str, points: np.ndarray | None = None)
     ``linemerge`` then only has the joins between chains left to find.  ``points`` gives
     each vertex's complex position (default: the crease pattern's own millimetres).
     """
-    return _chains(cp.edges[cp.assignment == kind], _points(cp, points))
+    return split_strokes(*crease_strokes(cp, kind, points))
 
 
 def outline_loops(cp: CreasePattern, points: np.ndarray | None = None) -> list[np.ndarray]:
     """The border edges chained into closed loops (first point repeated at the end), as complex
     arrays (``points`` as in :func:`crease_lines`)."""
-    return _chains(cp.edges[cp.assignment == "B"], _points(cp, points))
+    return split_strokes(*outline_strokes(cp, points))
+
+
+def crease_strokes(cp: CreasePattern, kind: str,
+                   points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`crease_lines` as arrays: every polyline's points one after another (complex), and
+    the index where each polyline starts; no Python object per line."""
+    return _strokes(cp.edges[cp.assignment == kind], _points(cp, points))
+
+
+def outline_strokes(cp: CreasePattern, points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`outline_loops` as arrays, like :func:`crease_strokes`."""
+    return _strokes(cp.edges[cp.assignment == "B"], _points(cp, points))
+
+
+def split_strokes(points: np.ndarray, starts: np.ndarray) -> list[np.ndarray]:
+    """The polylines of ``points`` that start at ``starts`` (ascending, the first 0), as views
+    into ``points``: one slice each, not a copy (faster than ``np.split``, which also swaps
+    axes twice per piece)."""
+    bounds = np.append(starts, len(points)).tolist()
+    return [points[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def stroke_segments(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """The segments (S, 2) complex of the polylines of ``points`` that start at ``starts``, in order."""
+    keep = np.ones(max(len(points) - 1, 0), dtype=bool)
+    keep[starts[1:] - 1] = False  # from the last point of one polyline to the first of the next
+    return np.column_stack([points[:-1][keep], points[1:][keep]]) if len(keep) else np.zeros((0, 2), complex)
 
 
 def vertex_points(cp: CreasePattern) -> np.ndarray:
@@ -39,7 +67,18 @@ def _points(cp: CreasePattern, points: np.ndarray | None) -> np.ndarray:
     return vertex_points(cp) if points is None else points
 
 
+def _strokes(edges: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_chains` as (points one polyline after another, where each starts)."""
+    vertices, starts = _chain_vertices(edges, points)
+    return points[vertices], starts
+
+
 def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
+    """:func:`_chain_vertices` as polylines, complex arrays of their points."""
+    return split_strokes(*_strokes(edges, points))
+
+
+def _chain_vertices(edges: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``edges`` (E, 2 indices into ``points``) drawn with as few pen lifts as a graph allows,
     going straight on through crossings.
 
@@ -52,7 +91,8 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     than turned at, and a plotter slows down or stops at every turn.  Where following the
     pairs alone walks every edge (they close no circuit), :func:`_trails` reads the strokes
     off at once; otherwise :func:`_circuit` walks, splicing the circuits in.  Closed loops
-    repeat their first point.  Deterministic (otherwise neighbours in index order).
+    repeat their first point.  Deterministic (otherwise neighbours in index order).  Returns
+    the strokes' vertices one stroke after another and where each stroke starts.
     """
     count = len(points)
     odd = np.flatnonzero(np.bincount(edges.ravel(), minlength=count) % 2)
@@ -81,7 +121,7 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     del unit
     trails = _trails(at, to, arrive, partner, extra) if len(odd) else None  # (no odd vertex: all circuits)
     if trails is not None:
-        return np.split(points[trails[0]], trails[1]) if len(trails[0]) else []
+        return trails
     # (one more slot, after the last, is the one a walk "arrives" by at its start: no partner);
     # machine-int arrays, not lists: a list holds an int object per slot (a million edges: a gigabyte)
     state = (_ints(ids), _ints(arrive), _ints(np.append(partner, -1)), _ints(np.append(at, extra)),
@@ -90,7 +130,8 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     left = np.flatnonzero(np.frombuffer(state[-1], dtype=bool)[:len(edges)] == 0)  # closed components
     for start in np.unique(edges[left].min(axis=1)).tolist():
         walks += _circuit(start, extra, *state)
-    return [points[walk] for walk in walks]
+    sizes = np.fromiter(map(len, walks), dtype=np.intp, count=len(walks))
+    return np.fromiter(chain.from_iterable(walks), dtype=np.intp, count=int(sizes.sum())), np.cumsum(sizes) - sizes
 
 
 def _ints(values: np.ndarray) -> array:
@@ -101,7 +142,7 @@ def _ints(values: np.ndarray) -> array:
 def _trails(at: np.ndarray, to: np.ndarray, arrive: np.ndarray, partner: np.ndarray,
             extra: int) -> tuple[np.ndarray, np.ndarray] | None:
     """The strokes the pairs make by themselves, as their vertices one after another and
-    where each but the first starts, or None where the pairs also close circuits (which
+    where each starts, or None where the pairs also close circuits (which
     Hierholzer's walk must splice in).
 
     Leaving by slot ``s``, a walk comes in by ``arrive[s]`` and leaves by its partner; a
@@ -126,7 +167,7 @@ def _trails(at: np.ndarray, to: np.ndarray, arrive: np.ndarray, partner: np.ndar
     kept[pointer[last]] = pointer[last] < arrive[last]
     slots = np.flatnonzero(kept[pointer] & ~head)
     slots = slots[np.lexsort((rank[slots], pointer[slots]))]
-    return at[slots], np.flatnonzero(np.diff(pointer[slots])) + 1
+    return at[slots], np.flatnonzero(np.diff(pointer[slots], prepend=-1))
 
 
 def _circuit(start: int, extra: int, edge: array, arrive: array, partner: array,
