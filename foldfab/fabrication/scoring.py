@@ -220,15 +220,24 @@ def _straight_pairs(at: np.ndarray, unit: np.ndarray, real: np.ndarray, extra: i
     """
     size = len(at)
     partner = np.full(size, -1, dtype=np.intp)
-    later = np.where(at < extra, np.searchsorted(at, at, side="right") - np.arange(size) - 1, 0)
-    first = np.repeat(np.arange(size), later)  # every pair of slots at one vertex: first < second
+    starts = np.flatnonzero(np.diff(at, prepend=-1))  # each vertex's first slot, and its slots
+    counts = np.diff(starts, append=size)
+    counts[at[starts] == extra] = 0
+    two = starts[counts == 2]  # a vertex of two slots pairs them: there is no choice to make
+    partner[two], partner[two + 1] = two + 1, two
+    starts, counts = starts[counts > 2], counts[counts > 2]
+    local = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+    slots = np.repeat(starts, counts) + local
+    later = np.repeat(counts, counts) - local - 1  # the slots after each at its vertex
+    del starts, counts, local
+    first = np.repeat(slots, later)  # every pair of slots at one vertex: first < second, in order
     second = first + 1 + np.arange(len(first)) - np.repeat(np.cumsum(later) - later, later)
-    del later
+    del slots, later
     cost = np.empty(len(first))
     for part in range(0, len(first), 1 << 20):   # in slices: the complex temporaries are 16 bytes a pair
         a, b = first[part:part + (1 << 20)], second[part:part + (1 << 20)]
         cost[part:part + len(a)] = np.where(real[a] & real[b], (unit[a] * unit[b].conj()).real, 2.0)
-    order = np.lexsort((second, first, cost, at[first]))
+    order = np.lexsort((cost, at[first]))  # stable: equal costs stay in slot order
     del cost
     first, second = first[order], second[order]
     del order
