@@ -99,17 +99,18 @@ def _chain_vertices(edges: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, 
     extra = count
     pairs = np.concatenate([edges.reshape(-1, 2), np.column_stack([odd, np.full(len(odd), extra)])])
     # adjacency lists side by side (CSR): each vertex's neighbours in index order, then by edge;
-    # slot k leaves vertex ends[order[k]] by edge ids[order[k]]
+    # slot k leaves vertex ends[order[k]] by edge order[k] // 2 (the edges' ends side by side,
+    # so a stable sort by vertex and neighbour leaves an edge's ends in edge order: one key, and
+    # the ends come nearly sorted, which a stable sort is quick at)
     # (each temporary is let go once used: a million edges make arrays of tens of megabytes)
-    ends, others = pairs.T.ravel(), pairs[:, ::-1].T.ravel()
-    ids = np.tile(np.arange(len(pairs)), 2)
-    order = np.lexsort((ids, others, ends))
-    at, to, ids = ends[order], others[order], ids[order]
+    ends, others = pairs.ravel(), pairs[:, ::-1].ravel()
+    order = np.argsort(ends * np.int64(count + 1) + others, kind="stable")
+    at, to, ids = ends[order], others[order], order // 2
     del ends, others
     offsets = np.searchsorted(at, np.arange(count + 2))
     slot = np.empty_like(order)
     slot[order] = np.arange(len(order))
-    arrive = slot[(order + len(pairs)) % len(order)]  # the slot of the same edge at its other end
+    arrive = slot[order ^ 1]  # the slot of the same edge at its other end
     del slot, order
     placed = np.append(points, 0)  # (the extra vertex anywhere: its edges have no direction)
     steps = np.where(to < extra, placed[to] - placed[at], 0)
@@ -214,41 +215,39 @@ def _straight_pairs(at: np.ndarray, unit: np.ndarray, real: np.ndarray, extra: i
     ``at`` is each slot's vertex (sorted), ``unit`` its direction away from the vertex
     (complex), ``real`` whether its edge is one of the graph's, not one to the ``extra``
     vertex, whose slots are left unpaired.  Greedy per vertex: the two free slots whose
-    directions are most nearly opposite pair first; an edge to the extra vertex pairs
-    last, so it takes the edge left over at an odd vertex.  Returns each slot's partner
-    slot (-1 for none).
+    directions are most nearly opposite pair first (of equal pairs, the first in slot order);
+    an edge to the extra vertex pairs last, so it takes the edge left over at an odd vertex.
+    Vertices of ``k`` slots are worked out together, as rows of their ``k (k - 1) / 2`` pairs.
+    Returns each slot's partner slot (-1 for none).
     """
     size = len(at)
     partner = np.full(size, -1, dtype=np.intp)
     starts = np.flatnonzero(np.diff(at, prepend=-1))  # each vertex's first slot, and its slots
     counts = np.diff(starts, append=size)
     counts[at[starts] == extra] = 0
-    two = starts[counts == 2]  # a vertex of two slots pairs them: there is no choice to make
-    partner[two], partner[two + 1] = two + 1, two
-    starts, counts = starts[counts > 2], counts[counts > 2]
-    local = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-    slots = np.repeat(starts, counts) + local
-    later = np.repeat(counts, counts) - local - 1  # the slots after each at its vertex
-    del starts, counts, local
-    first = np.repeat(slots, later)  # every pair of slots at one vertex: first < second, in order
-    second = first + 1 + np.arange(len(first)) - np.repeat(np.cumsum(later) - later, later)
-    del slots, later
-    cost = np.empty(len(first))
-    for part in range(0, len(first), 1 << 20):   # in slices: the complex temporaries are 16 bytes a pair
-        a, b = first[part:part + (1 << 20)], second[part:part + (1 << 20)]
-        cost[part:part + len(a)] = np.where(real[a] & real[b], (unit[a] * unit[b].conj()).real, 2.0)
-    order = np.lexsort((cost, at[first]))  # stable: equal costs stay in slot order
-    del cost
-    first, second = first[order], second[order]
-    del order
-    free = np.ones(size, dtype=bool)
-    while len(first):  # each round pairs the best pair of free slots at every vertex
-        keep = free[first] & free[second]
-        first, second = first[keep], second[keep]
-        best = np.flatnonzero(np.diff(at[first], prepend=-1))
-        partner[first[best]], partner[second[best]] = second[best], first[best]
-        free[first[best]] = free[second[best]] = False
+    for k in np.unique(counts[counts > 1]).tolist():
+        i, j = np.triu_indices(k, 1)  # the pairs of a vertex's slots, in slot order
+        rows = max(1, CHUNK // len(i))
+        firsts = starts[counts == k]
+        for part in range(0, len(firsts), rows):  # in slices: the complex temporaries are 16 bytes a pair
+            first = firsts[part:part + rows, None]
+            a, b = first + i, first + j
+            if k == 2:  # no choice to make
+                cost = np.zeros((len(first), 1))
+            else:
+                cost = np.where(real[a] & real[b], (unit[a] * unit[b].conj()).real, 2.0)
+            row = np.arange(len(first))
+            for _ in range(k // 2):  # the best pair of free slots at every vertex; argmin: the first of equals
+                best = np.argmin(cost, axis=1)
+                partner[a[row, best]], partner[b[row, best]] = b[row, best], a[row, best]
+                if k > 3:  # no pair with a slot just paired is free any more
+                    taken = i[best, None], j[best, None]
+                    cost[(i == taken[0]) | (i == taken[1]) | (j == taken[0]) | (j == taken[1])] = np.inf
     return partner
+
+
+CHUNK = 1 << 20
+"""Pairs costed at a time in :func:`_straight_pairs` (bounds its temporary arrays)."""
 
 
 def dash_bound(segments: np.ndarray, pattern: tuple[float, ...], clearance: float) -> int:
