@@ -10,6 +10,8 @@ design.  Touching (within a tolerance) is not penetration.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from foldfab.geometry.crease_pattern import CreasePattern
@@ -52,9 +54,15 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     dims = c_hi.max(axis=0) - base + 1
     c_lo -= base
     keys, owners = _cell_entries(c_lo, span, counts, dims)
-    order = np.argsort(keys, kind="stable")   # stable: each cell's boxes stay in increasing order
-    keys, owners = keys[order], owners[order]
-    del order
+    if math.prod(dims.tolist()) * n < 1 << 62:  # cell and box as one number: sorting values is quicker
+        entries = np.sort(keys * n + owners)  # each cell's boxes in increasing order
+        keys = entries // n
+        owners = entries - keys * n
+        del entries
+    else:
+        order = np.argsort(keys, kind="stable")   # stable: each cell's boxes stay in increasing order
+        keys, owners = keys[order], owners[order]
+        del order
     # Only cells holding two boxes or more make pairs: their runs of entries, one after another.
     start = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1]]))
     size = np.diff(start, append=len(keys))
@@ -155,11 +163,12 @@ def find_penetrations(cp: CreasePattern, tolerance: float = 1e-6) -> np.ndarray:
     fa, fb = faces[a[boxes]], faces[b[boxes]]
     del pairs, a, b, boxes
     adjacent = np.zeros(len(fa), dtype=bool)
-    ends_a, ends_b = [face_w[fa, k] for k in range(4)], [face_w[fb, k] for k in range(4)]
+    corner_ids = np.ascontiguousarray(face_w.T)
+    ends_a, ends_b = [ids[fa] for ids in corner_ids], [ids[fb] for ids in corner_ids]
     for end in ends_a:
         for other in ends_b:
             adjacent |= end == other
-    del ends_a, ends_b
+    del ends_a, ends_b, corner_ids
     fa, fb = fa[~adjacent], fb[~adjacent]
     # Narrow phase on the faces' triangles (0, 1, 2) and (0, 2, 3), as in CreasePattern.triangles;
     # a triangular face repeats a vertex, and its degenerate half is left out.
