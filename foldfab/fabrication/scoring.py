@@ -149,19 +149,22 @@ def _trails(at: np.ndarray, to: np.ndarray, arrive: np.ndarray, partner: np.ndar
     Leaving by slot ``s``, a walk comes in by ``arrive[s]`` and leaves by its partner; a
     stroke runs from a slot at the extra vertex to one into it.  Every slot finds its
     stroke and place in it by pointer jumping on the slot before it (list ranking, one
-    doubling per round); each stroke is found from both ends and kept from the lower.
+    doubling per round, on the slots not at their stroke's head yet); each stroke is found
+    from both ends and kept from the lower.
     """
     size = len(at)
     head = at == extra
     pointer = np.where(head, np.arange(size), arrive[partner])  # the slot before; a head: itself
     rank = (~head).astype(np.intp)
+    active = np.flatnonzero(~head[pointer])  # the slots whose pointer has yet to reach a head
     for _ in range(size.bit_length()):
-        further = pointer[pointer]
-        if np.array_equal(further, pointer):
+        if not len(active):
             break
-        rank += rank[pointer]
-        pointer = further
-    if not head[pointer].all():
+        before = pointer[active]
+        rank[active] += rank[before]  # (each side read whole before it is written: one round at once)
+        pointer[active] = pointer[before]
+        active = active[~head[pointer[active]]]
+    if len(active):
         return None
     last = np.flatnonzero(to == extra)
     kept = np.zeros(size, dtype=bool)
