@@ -261,8 +261,10 @@ def check_strokes(design: Design, spec: FabricationSpec, strokes: dict[str, tupl
 
 def _segments(lines) -> np.ndarray:
     """The segments (S, 2) complex of polylines ``lines``, in order."""
-    segments = [np.column_stack([line[:-1], line[1:]]) for line in lines]
-    return np.concatenate(segments) if segments else np.zeros((0, 2), complex)
+    from foldfab.fabrication.scoring import stroke_segments
+
+    sizes = np.array([len(line) for line in lines], dtype=np.intp)
+    return stroke_segments(np.concatenate(lines) if len(sizes) else np.zeros(0, complex), np.cumsum(sizes) - sizes)
 
 
 def finish_plan(layout: PlotPlan, device: DeviceProfile, spec: FabricationSpec,
