@@ -189,15 +189,16 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
     blades, _ = layer_blades(design, device, spec)
     cp = design.crease_pattern
     placed = placement.apply(scoring.vertex_points(cp))
-    lines = {"valley": scoring.crease_lines(cp, "V", placed), "mountain": scoring.crease_lines(cp, "M", placed),
-             "cut": scoring.outline_loops(cp, placed)}
+    strokes = {"valley": scoring.crease_strokes(cp, "V", placed), "mountain": scoring.crease_strokes(cp, "M", placed),
+               "cut": scoring.outline_strokes(cp, placed)}
     marks = [placement.apply(m[:, 0] + 1j * m[:, 1]) for m in design.marks]
     if spec.strategy == "two-sided":
         flip = (lambda p: mirror(p, sheet[0])) if spec.flip_edge == "left" else \
                (lambda p: p.real + 1j * (sheet[1] - p.imag))
-        lines["mountain"] = [flip(p) for p in lines["mountain"]]
-        lines["cut"] = [flip(p) for p in lines["cut"]]
-    check_strokes(design, spec, lines)
+        for name in ("mountain", "cut"):
+            points, starts = strokes[name]
+            strokes[name] = flip(points), starts
+    check_strokes(design, spec, strokes)
 
     doc = vp.Document()
     doc.page_size = sheet
@@ -205,13 +206,25 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
     for name, (layer_id, colour) in LAYERS.items():
         if spec.strategy == "two-sided" and name == "mountain":
             steps.append(Pause(flip_message(spec, device)))
-        doc.add(lines[name], layer_id)
+        doc.layers[layer_id] = collection(scoring.split_strokes(*strokes[name]))
         doc.layers[layer_id].set_property("vp_name", name)
         doc.layers[layer_id].set_property("vp_color", vp.Color(colour))
         steps.append(Pass(layer_id, name, tools[name], blades[name]))
         if name == "valley" and marks:   # on the front, with the scoring tool: drawn, never cut
             add_marks(doc, steps, marks, device)
     return PlotPlan(doc, steps, sheet)
+
+
+def collection(lines: list[np.ndarray]):
+    """``lines`` (1-D complex arrays of two points or more) as a vpype ``LineCollection`` that
+    holds these very arrays: its constructor copies each line in a Python call of its own,
+    a third of a second for a hundred thousand lines.  The arrays may be views into one
+    array, as long as they do not overlap (vpype's transforms change lines in place)."""
+    import vpype as vp
+
+    layer = vp.LineCollection()
+    layer.lines.extend(lines)  # vpype's documented list of the collection's lines, itself
+    return layer
 
 
 def add_marks(doc, steps: list, marks: list[np.ndarray], device: DeviceProfile) -> None:
@@ -227,17 +240,18 @@ def add_marks(doc, steps: list, marks: list[np.ndarray], device: DeviceProfile) 
     steps.append(Pass(layer_id, "marks", device.tool_for("marks", like="valley")))
 
 
-def check_strokes(design: Design, spec: FabricationSpec, lines: dict[str, list[np.ndarray]]) -> None:
+def check_strokes(design: Design, spec: FabricationSpec, strokes: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
     """Refuse, before the plan is optimized or perforated, a program of more strokes than
-    ``spec.max_strokes``: one per line, one per dash of a perforated crease."""
+    ``spec.max_strokes``: one per line, one per dash of a perforated crease.  ``strokes``
+    holds each layer's lines as :func:`~foldfab.fabrication.scoring.crease_strokes` gives them."""
     from foldfab.fabrication import scoring
 
     count = 0
-    for name, layer in lines.items():
+    for name, (points, starts) in strokes.items():
         if spec.strategy == "perforate" and name in spec.perforation:
-            count += scoring.dash_bound(_segments(layer), spec.perforation[name], spec.clearance)
+            count += scoring.dash_bound(scoring.stroke_segments(points, starts), spec.perforation[name], spec.clearance)
         else:
-            count += len(layer)
+            count += len(starts)
     if count > spec.max_strokes:
         finer = " or a longer [fabrication.perforate] pattern" if spec.strategy == "perforate" else ""
         raise FoldfabError(f"{design.job.path}: the program would draw up to {count:,} strokes, more than the limit of "
@@ -247,8 +261,10 @@ def check_strokes(design: Design, spec: FabricationSpec, lines: dict[str, list[n
 
 def _segments(lines) -> np.ndarray:
     """The segments (S, 2) complex of polylines ``lines``, in order."""
-    segments = [np.column_stack([line[:-1], line[1:]]) for line in lines]
-    return np.concatenate(segments) if segments else np.zeros((0, 2), complex)
+    from foldfab.fabrication.scoring import stroke_segments
+
+    sizes = np.array([len(line) for line in lines], dtype=np.intp)
+    return stroke_segments(np.concatenate(lines) if len(sizes) else np.zeros(0, complex), np.cumsum(sizes) - sizes)
 
 
 def finish_plan(layout: PlotPlan, device: DeviceProfile, spec: FabricationSpec,

@@ -8,6 +8,7 @@ dashes as real cut segments.  Flat creases are never scored.
 from __future__ import annotations
 
 from array import array
+from itertools import chain
 
 import numpy as np
 
@@ -21,13 +22,40 @@ def crease_lines(cp: CreasePattern, kind: str, points: np.ndarray | None = None)
     ``linemerge`` then only has the joins between chains left to find.  ``points`` gives
     each vertex's complex position (default: the crease pattern's own millimetres).
     """
-    return _chains(cp.edges[cp.assignment == kind], _points(cp, points))
+    return split_strokes(*crease_strokes(cp, kind, points))
 
 
 def outline_loops(cp: CreasePattern, points: np.ndarray | None = None) -> list[np.ndarray]:
     """The border edges chained into closed loops (first point repeated at the end), as complex
     arrays (``points`` as in :func:`crease_lines`)."""
-    return _chains(cp.edges[cp.assignment == "B"], _points(cp, points))
+    return split_strokes(*outline_strokes(cp, points))
+
+
+def crease_strokes(cp: CreasePattern, kind: str,
+                   points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`crease_lines` as arrays: every polyline's points one after another (complex), and
+    the index where each polyline starts; no Python object per line."""
+    return _strokes(cp.edges[cp.assignment == kind], _points(cp, points))
+
+
+def outline_strokes(cp: CreasePattern, points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`outline_loops` as arrays, like :func:`crease_strokes`."""
+    return _strokes(cp.edges[cp.assignment == "B"], _points(cp, points))
+
+
+def split_strokes(points: np.ndarray, starts: np.ndarray) -> list[np.ndarray]:
+    """The polylines of ``points`` that start at ``starts`` (ascending, the first 0), as views
+    into ``points``: one slice each, not a copy (faster than ``np.split``, which also swaps
+    axes twice per piece)."""
+    bounds = np.append(starts, len(points)).tolist()
+    return [points[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def stroke_segments(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """The segments (S, 2) complex of the polylines of ``points`` that start at ``starts``, in order."""
+    keep = np.ones(max(len(points) - 1, 0), dtype=bool)
+    keep[starts[1:] - 1] = False  # from the last point of one polyline to the first of the next
+    return np.column_stack([points[:-1][keep], points[1:][keep]]) if len(keep) else np.zeros((0, 2), complex)
 
 
 def vertex_points(cp: CreasePattern) -> np.ndarray:
@@ -39,7 +67,18 @@ def _points(cp: CreasePattern, points: np.ndarray | None) -> np.ndarray:
     return vertex_points(cp) if points is None else points
 
 
+def _strokes(edges: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_chains` as (points one polyline after another, where each starts)."""
+    vertices, starts = _chain_vertices(edges, points)
+    return points[vertices], starts
+
+
 def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
+    """:func:`_chain_vertices` as polylines, complex arrays of their points."""
+    return split_strokes(*_strokes(edges, points))
+
+
+def _chain_vertices(edges: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``edges`` (E, 2 indices into ``points``) drawn with as few pen lifts as a graph allows,
     going straight on through crossings.
 
@@ -52,24 +91,26 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     than turned at, and a plotter slows down or stops at every turn.  Where following the
     pairs alone walks every edge (they close no circuit), :func:`_trails` reads the strokes
     off at once; otherwise :func:`_circuit` walks, splicing the circuits in.  Closed loops
-    repeat their first point.  Deterministic (otherwise neighbours in index order).
+    repeat their first point.  Deterministic (otherwise neighbours in index order).  Returns
+    the strokes' vertices one stroke after another and where each stroke starts.
     """
     count = len(points)
     odd = np.flatnonzero(np.bincount(edges.ravel(), minlength=count) % 2)
     extra = count
     pairs = np.concatenate([edges.reshape(-1, 2), np.column_stack([odd, np.full(len(odd), extra)])])
     # adjacency lists side by side (CSR): each vertex's neighbours in index order, then by edge;
-    # slot k leaves vertex ends[order[k]] by edge ids[order[k]]
+    # slot k leaves vertex ends[order[k]] by edge order[k] // 2 (the edges' ends side by side,
+    # so a stable sort by vertex and neighbour leaves an edge's ends in edge order: one key, and
+    # the ends come nearly sorted, which a stable sort is quick at)
     # (each temporary is let go once used: a million edges make arrays of tens of megabytes)
-    ends, others = pairs.T.ravel(), pairs[:, ::-1].T.ravel()
-    ids = np.tile(np.arange(len(pairs)), 2)
-    order = np.lexsort((ids, others, ends))
-    at, to, ids = ends[order], others[order], ids[order]
+    ends, others = pairs.ravel(), pairs[:, ::-1].ravel()
+    order = np.argsort(ends * np.int64(count + 1) + others, kind="stable")
+    at, to, ids = ends[order], others[order], order // 2
     del ends, others
     offsets = np.searchsorted(at, np.arange(count + 2))
     slot = np.empty_like(order)
     slot[order] = np.arange(len(order))
-    arrive = slot[(order + len(pairs)) % len(order)]  # the slot of the same edge at its other end
+    arrive = slot[order ^ 1]  # the slot of the same edge at its other end
     del slot, order
     placed = np.append(points, 0)  # (the extra vertex anywhere: its edges have no direction)
     steps = np.where(to < extra, placed[to] - placed[at], 0)
@@ -81,7 +122,7 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     del unit
     trails = _trails(at, to, arrive, partner, extra) if len(odd) else None  # (no odd vertex: all circuits)
     if trails is not None:
-        return np.split(points[trails[0]], trails[1]) if len(trails[0]) else []
+        return trails
     # (one more slot, after the last, is the one a walk "arrives" by at its start: no partner);
     # machine-int arrays, not lists: a list holds an int object per slot (a million edges: a gigabyte)
     state = (_ints(ids), _ints(arrive), _ints(np.append(partner, -1)), _ints(np.append(at, extra)),
@@ -90,7 +131,8 @@ def _chains(edges: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     left = np.flatnonzero(np.frombuffer(state[-1], dtype=bool)[:len(edges)] == 0)  # closed components
     for start in np.unique(edges[left].min(axis=1)).tolist():
         walks += _circuit(start, extra, *state)
-    return [points[walk] for walk in walks]
+    sizes = np.fromiter(map(len, walks), dtype=np.intp, count=len(walks))
+    return np.fromiter(chain.from_iterable(walks), dtype=np.intp, count=int(sizes.sum())), np.cumsum(sizes) - sizes
 
 
 def _ints(values: np.ndarray) -> array:
@@ -101,32 +143,35 @@ def _ints(values: np.ndarray) -> array:
 def _trails(at: np.ndarray, to: np.ndarray, arrive: np.ndarray, partner: np.ndarray,
             extra: int) -> tuple[np.ndarray, np.ndarray] | None:
     """The strokes the pairs make by themselves, as their vertices one after another and
-    where each but the first starts, or None where the pairs also close circuits (which
+    where each starts, or None where the pairs also close circuits (which
     Hierholzer's walk must splice in).
 
     Leaving by slot ``s``, a walk comes in by ``arrive[s]`` and leaves by its partner; a
     stroke runs from a slot at the extra vertex to one into it.  Every slot finds its
     stroke and place in it by pointer jumping on the slot before it (list ranking, one
-    doubling per round); each stroke is found from both ends and kept from the lower.
+    doubling per round, on the slots not at their stroke's head yet); each stroke is found
+    from both ends and kept from the lower.
     """
     size = len(at)
     head = at == extra
     pointer = np.where(head, np.arange(size), arrive[partner])  # the slot before; a head: itself
     rank = (~head).astype(np.intp)
+    active = np.flatnonzero(~head[pointer])  # the slots whose pointer has yet to reach a head
     for _ in range(size.bit_length()):
-        further = pointer[pointer]
-        if np.array_equal(further, pointer):
+        if not len(active):
             break
-        rank += rank[pointer]
-        pointer = further
-    if not head[pointer].all():
+        before = pointer[active]
+        rank[active] += rank[before]  # (each side read whole before it is written: one round at once)
+        pointer[active] = pointer[before]
+        active = active[~head[pointer[active]]]
+    if len(active):
         return None
     last = np.flatnonzero(to == extra)
     kept = np.zeros(size, dtype=bool)
     kept[pointer[last]] = pointer[last] < arrive[last]
     slots = np.flatnonzero(kept[pointer] & ~head)
     slots = slots[np.lexsort((rank[slots], pointer[slots]))]
-    return at[slots], np.flatnonzero(np.diff(pointer[slots])) + 1
+    return at[slots], np.flatnonzero(np.diff(pointer[slots], prepend=-1))
 
 
 def _circuit(start: int, extra: int, edge: array, arrive: array, partner: array,
@@ -173,32 +218,39 @@ def _straight_pairs(at: np.ndarray, unit: np.ndarray, real: np.ndarray, extra: i
     ``at`` is each slot's vertex (sorted), ``unit`` its direction away from the vertex
     (complex), ``real`` whether its edge is one of the graph's, not one to the ``extra``
     vertex, whose slots are left unpaired.  Greedy per vertex: the two free slots whose
-    directions are most nearly opposite pair first; an edge to the extra vertex pairs
-    last, so it takes the edge left over at an odd vertex.  Returns each slot's partner
-    slot (-1 for none).
+    directions are most nearly opposite pair first (of equal pairs, the first in slot order);
+    an edge to the extra vertex pairs last, so it takes the edge left over at an odd vertex.
+    Vertices of ``k`` slots are worked out together, as rows of their ``k (k - 1) / 2`` pairs.
+    Returns each slot's partner slot (-1 for none).
     """
     size = len(at)
     partner = np.full(size, -1, dtype=np.intp)
-    later = np.where(at < extra, np.searchsorted(at, at, side="right") - np.arange(size) - 1, 0)
-    first = np.repeat(np.arange(size), later)  # every pair of slots at one vertex: first < second
-    second = first + 1 + np.arange(len(first)) - np.repeat(np.cumsum(later) - later, later)
-    del later
-    cost = np.empty(len(first))
-    for part in range(0, len(first), 1 << 20):   # in slices: the complex temporaries are 16 bytes a pair
-        a, b = first[part:part + (1 << 20)], second[part:part + (1 << 20)]
-        cost[part:part + len(a)] = np.where(real[a] & real[b], (unit[a] * unit[b].conj()).real, 2.0)
-    order = np.lexsort((second, first, cost, at[first]))
-    del cost
-    first, second = first[order], second[order]
-    del order
-    free = np.ones(size, dtype=bool)
-    while len(first):  # each round pairs the best pair of free slots at every vertex
-        keep = free[first] & free[second]
-        first, second = first[keep], second[keep]
-        best = np.flatnonzero(np.diff(at[first], prepend=-1))
-        partner[first[best]], partner[second[best]] = second[best], first[best]
-        free[first[best]] = free[second[best]] = False
+    starts = np.flatnonzero(np.diff(at, prepend=-1))  # each vertex's first slot, and its slots
+    counts = np.diff(starts, append=size)
+    counts[at[starts] == extra] = 0
+    for k in np.unique(counts[counts > 1]).tolist():
+        i, j = np.triu_indices(k, 1)  # the pairs of a vertex's slots, in slot order
+        rows = max(1, CHUNK // len(i))
+        firsts = starts[counts == k]
+        for part in range(0, len(firsts), rows):  # in slices: the complex temporaries are 16 bytes a pair
+            first = firsts[part:part + rows, None]
+            a, b = first + i, first + j
+            if k == 2:  # no choice to make
+                cost = np.zeros((len(first), 1))
+            else:
+                cost = np.where(real[a] & real[b], (unit[a] * unit[b].conj()).real, 2.0)
+            row = np.arange(len(first))
+            for _ in range(k // 2):  # the best pair of free slots at every vertex; argmin: the first of equals
+                best = np.argmin(cost, axis=1)
+                partner[a[row, best]], partner[b[row, best]] = b[row, best], a[row, best]
+                if k > 3:  # no pair with a slot just paired is free any more
+                    taken = i[best, None], j[best, None]
+                    cost[(i == taken[0]) | (i == taken[1]) | (j == taken[0]) | (j == taken[1])] = np.inf
     return partner
+
+
+CHUNK = 1 << 20
+"""Pairs costed at a time in :func:`_straight_pairs` (bounds its temporary arrays)."""
 
 
 def dash_bound(segments: np.ndarray, pattern: tuple[float, ...], clearance: float) -> int:

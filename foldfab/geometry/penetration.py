@@ -10,6 +10,8 @@ design.  Touching (within a tolerance) is not penetration.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from foldfab.geometry.crease_pattern import CreasePattern
@@ -35,8 +37,11 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     n = len(lo)
     # One cell size per axis: the boxes' median extent along it.  Thin, long faces (a finely
     # sampled profile) would crowd cubic cells sized to their length with millions of pairs.
-    floor = max(float(np.ptp(np.vstack([lo, hi]), axis=0).max()) * 1e-6, 1e-12)
-    cell = np.maximum(np.median(hi - lo, axis=0), floor)
+    # (Reduced along contiguous rows of the transposes: numpy is slow along a 3-wide axis.)
+    lo_t, hi_t = np.ascontiguousarray(lo.T), np.ascontiguousarray(hi.T)
+    floor = max(float((hi_t.max(axis=1) - lo_t.min(axis=1)).max()) * 1e-6, 1e-12)
+    cell = np.maximum(np.median(hi_t - lo_t, axis=1), floor)
+    del lo_t, hi_t
     while True:
         c_lo = np.floor(lo / cell).astype(np.int64)
         c_hi = np.floor(hi / cell).astype(np.int64)
@@ -49,9 +54,15 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     dims = c_hi.max(axis=0) - base + 1
     c_lo -= base
     keys, owners = _cell_entries(c_lo, span, counts, dims)
-    order = np.argsort(keys, kind="stable")   # stable: each cell's boxes stay in increasing order
-    keys, owners = keys[order], owners[order]
-    del order
+    if math.prod(dims.tolist()) * n < 1 << 62:  # cell and box as one number: sorting values is quicker
+        entries = np.sort(keys * n + owners)  # each cell's boxes in increasing order
+        keys = entries // n
+        owners = entries - keys * n
+        del entries
+    else:
+        order = np.argsort(keys, kind="stable")   # stable: each cell's boxes stay in increasing order
+        keys, owners = keys[order], owners[order]
+        del order
     # Only cells holding two boxes or more make pairs: their runs of entries, one after another.
     start = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1]]))
     size = np.diff(start, append=len(keys))
@@ -86,10 +97,13 @@ def _cell_entries(c_lo: np.ndarray, span: np.ndarray, counts: np.ndarray, dims: 
         sizes = counts[part]
         owner = np.repeat(np.arange(first, last, dtype=np.int32), sizes)
         local = np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
-        sy, sz = span[owner, 1], span[owner, 2]
-        key = c_lo[owner, 0] + local // (sy * sz)
-        key = key * dims[1] + c_lo[owner, 1] + (local // sz) % sy
-        keys.append(key * dims[2] + c_lo[owner, 2] + local % sz)
+
+        def each(values: np.ndarray) -> np.ndarray:  # a value per box, repeated for its entries
+            return np.repeat(values[part], sizes)
+        sy, sz = each(span[:, 1]), each(span[:, 2])
+        key = each(c_lo[:, 0]) + local // (sy * sz)
+        key = key * dims[1] + each(c_lo[:, 1]) + (local // sz) % sy
+        keys.append(key * dims[2] + each(c_lo[:, 2]) + local % sz)
         owners.append(owner)
         first = last
     return np.concatenate(keys), np.concatenate(owners)
@@ -131,17 +145,30 @@ def find_penetrations(cp: CreasePattern, tolerance: float = 1e-6) -> np.ndarray:
     if len(faces) < 2:
         return np.zeros((0, 2), np.int64)
     v = cp.vertices_3d
-    scale = float(np.ptp(v, axis=0).max()) or 1.0
+    axes = np.ascontiguousarray(v.T)  # x, y, z rows: numpy reduces and gathers them faster than (N, 3)
+    scale = float((axes.max(axis=1) - axes.min(axis=1)).max()) or 1.0
     eps = tolerance * scale
     face_w = _weld(v, eps)[cp.faces]
     # Broad phase on whole faces (half as many boxes as triangles), then adjacency.
-    corners = v[cp.faces[faces]]
-    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    corners = [axis[cp.faces[faces]] for axis in axes]  # (F, 4) per axis
+    lo = np.column_stack([np.minimum(np.minimum(c[:, 0], c[:, 1]), np.minimum(c[:, 2], c[:, 3])) for c in corners])
+    hi = np.column_stack([np.maximum(np.maximum(c[:, 0], c[:, 1]), np.maximum(c[:, 2], c[:, 3])) for c in corners])
+    del corners
     pairs = candidate_pairs(lo, hi)
     a, b = pairs[:, 0], pairs[:, 1]
-    boxes = np.all((np.minimum(hi[a], hi[b]) - np.maximum(lo[a], lo[b])) > -eps, axis=1)
+    boxes = np.ones(len(pairs), dtype=bool)
+    for low, high in zip(lo.T, hi.T):
+        low, high = np.ascontiguousarray(low), np.ascontiguousarray(high)
+        boxes &= (np.minimum(high[a], high[b]) - np.maximum(low[a], low[b])) > -eps
     fa, fb = faces[a[boxes]], faces[b[boxes]]
-    adjacent = (face_w[fa][:, :, None] == face_w[fb][:, None, :]).any(axis=(1, 2))
+    del pairs, a, b, boxes
+    adjacent = np.zeros(len(fa), dtype=bool)
+    corner_ids = np.ascontiguousarray(face_w.T)
+    ends_a, ends_b = [ids[fa] for ids in corner_ids], [ids[fb] for ids in corner_ids]
+    for end in ends_a:
+        for other in ends_b:
+            adjacent |= end == other
+    del ends_a, ends_b, corner_ids
     fa, fb = fa[~adjacent], fb[~adjacent]
     # Narrow phase on the faces' triangles (0, 1, 2) and (0, 2, 3), as in CreasePattern.triangles;
     # a triangular face repeats a vertex, and its degenerate half is left out.

@@ -15,7 +15,7 @@ from foldfab.errors import DesignError
 from foldfab.job import parse_job
 from foldfab.design import build_design
 from foldfab.formats.mesh import to_trimesh
-from foldfab.geometry.penetration import find_penetrations
+from foldfab.geometry.penetration import candidate_pairs, find_penetrations
 from foldfab.geometry.reflection import reflect
 
 
@@ -140,3 +140,20 @@ def test_mesh_is_welded_at_the_seam():
     # a closed column is a tube: welded, its only open edges are the top and bottom rims
     assert len(mesh.vertices) == len(cp.vertices) - 3
     assert mesh.is_winding_consistent
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.tuples(st.integers(0, 40), st.integers(0, 40), st.integers(0, 40)),
+                          st.tuples(st.integers(0, 6), st.integers(0, 6), st.integers(0, 6))), min_size=2, max_size=30),
+       st.sampled_from([1.0, 1e6]))
+def test_candidate_pairs_hold_every_overlapping_pair_once(boxes, spread):
+    """Boxes on a lattice (touching and equal ones common), close together or spread so far
+    apart that a cell and a box no longer fit one 64-bit number: every two that overlap or
+    touch are among the pairs, each pair once, smaller box first."""
+    corner = np.array([b[0] for b in boxes], dtype=float) * spread
+    lo, hi = corner, corner + np.array([b[1] for b in boxes], dtype=float)
+    pairs = candidate_pairs(lo, hi).tolist()
+    assert all(i < j for i, j in pairs) and len(set(map(tuple, pairs))) == len(pairs)
+    touching = {(i, j) for i in range(len(boxes)) for j in range(i + 1, len(boxes))
+                if np.all(np.minimum(hi[i], hi[j]) >= np.maximum(lo[i], lo[j]))}
+    assert touching <= set(map(tuple, pairs))
