@@ -33,7 +33,7 @@ import numpy as np
 
 from foldfab.devices import GCODE_DECIMALS
 from foldfab.errors import FoldfabError
-from foldfab.programs.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps
+from foldfab.programs.program import Program, ProgramBuilder, Sink, Stop, Sweep, fmt_number, sweeps
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -42,10 +42,11 @@ if TYPE_CHECKING:
 MAX_LINE = 79  # characters before "\n": GRBL 1.1 holds 80 including the terminator
 
 
-def write_gcode(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """The GRBL 1.1 program drawing ``plan`` on ``device``."""
+def write_gcode(plan: PlotPlan, device: DeviceProfile, sink: Sink | None = None) -> Program:
+    """The GRBL 1.1 program drawing ``plan`` on ``device``;
+    ``sink``: see :class:`~foldfab.programs.program.ProgramBuilder` (the text streamed, not kept)."""
     items = sweeps(plan, device)
-    out = _GcodeWriter(device)
+    out = _GcodeWriter(device, sink)
     sheet = f"{fmt_number(plan.sheet[0], 1)} x {fmt_number(plan.sheet[1], 1)} mm"
     out.comment(f"foldfab program for {device.name}, sheet {sheet}")
     out.line("G21 G90 G17")
@@ -78,9 +79,9 @@ def _ascii(text: str) -> str:
 class _GcodeWriter:
     """Writes lines and tracks GRBL's modal state (motion mode, feed, tool up/down)."""
 
-    def __init__(self, device: DeviceProfile):
+    def __init__(self, device: DeviceProfile, sink: Sink | None = None):
         self.device = device
-        self.builder = ProgramBuilder("gcode", device, record=True)
+        self.builder = ProgramBuilder("gcode", device, record=True, sink=sink)
         self.motion: str | None = None
         self.feed: float | None = None
         self.position: str | None = None  # "X.. Y.." of the last move

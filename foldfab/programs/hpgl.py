@@ -20,7 +20,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from foldfab.errors import FoldfabError
-from foldfab.programs.program import Program, ProgramBuilder, Stop, fmt_number, sweeps
+from foldfab.programs.program import Program, ProgramBuilder, Sink, Stop, fmt_number, sweeps
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -29,12 +29,13 @@ if TYPE_CHECKING:
 SPEED_DECIMALS = {"hp": 2, "graphtec": 0, "roland": 0}
 
 
-def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """The HPGL program drawing ``plan`` on ``device``."""
+def write_hpgl(plan: PlotPlan, device: DeviceProfile, sink: Sink | None = None) -> Program:
+    """The HPGL program drawing ``plan`` on ``device``;
+    ``sink``: see :class:`~foldfab.programs.program.ProgramBuilder` (the text streamed, not kept)."""
     import numpy as np
 
     items = sweeps(plan, device)
-    out = ProgramBuilder("hpgl", device, record=True)
+    out = ProgramBuilder("hpgl", device, record=True, sink=sink)
     park_x, park_y = device.park_units
     park = f"PU{park_x},{park_y};SP0;"
     limit = device.buffer.instruction_limit
