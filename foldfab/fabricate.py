@@ -31,6 +31,7 @@ class Fabrication:
     layout: PlotPlan        # the plan before optimization (for the travel it saves)
     warnings: tuple[str, ...] = ()   # job settings the device does not have, ignored
     piece: Any = None       # foldfab.geometry.split.Piece this sheet draws, None for a whole design
+    measured_before: dict | None = None   # travel_before, kept where the layout is not (without_layout)
 
     @property
     def placement_summary(self) -> str:
@@ -58,10 +59,18 @@ class Fabrication:
         """Pen-up travel of the same layers unoptimized (on demand: only reports need it)."""
         from foldfab.fabrication.optimize import travel
 
+        if self.measured_before is not None:
+            return self.measured_before
         if self.spec.optimize == "none":
             return self.travel_after
         unoptimized = finish_plan(self.layout, self.device, self.spec, optimize="none")
         return travel(unoptimized, park_position(self.device, self.plan.sheet), self.device.tool_changer)
+
+    def without_layout(self) -> Fabrication:
+        """The same fabrication without its layout (every stroke a second time, 200 MB for a
+        million strokes), its :attr:`travel_before` measured first: for a caller that writes and
+        reports a large program and needs nothing else of the layout."""
+        return replace(self, layout=None, measured_before=self.travel_before)
 
 
 @dataclass(frozen=True)

@@ -260,8 +260,11 @@ class Frame:
         """Device units (N, 2) -> sheet mm, float (N, 2)."""
         import numpy as np
 
-        dev = np.asarray(points, dtype=float).reshape(-1, 2) / self.units_per_mm + self.offset
-        return dev @ np.asarray(self.matrix, dtype=float) + self.corner
+        dev = np.asarray(points, dtype=float).reshape(-1, 2) / self.units_per_mm
+        dev += self.offset   # in place: a million strokes' points are 50 MB an array
+        sheet = dev @ np.asarray(self.matrix, dtype=float)
+        sheet += self.corner
+        return sheet
 
     def device_rect_on_sheet(self, width: float, height: float) -> tuple[float, float, float, float]:
         """The device rectangle [0, width] x [0, height] (mm) as (x0, y0, x1, y1) on the sheet."""

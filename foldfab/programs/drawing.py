@@ -73,7 +73,9 @@ class Recording:
         import numpy as np
 
         sizes = np.frombuffer(self.sizes, dtype=np.int64).astype(np.intp)
-        points = frame.to_sheet(np.concatenate(self.chunks)) if self.chunks else np.zeros((0, 2))
+        if len(self.chunks) > 1:   # kept as one array: the sweeps' and their join are not held at once
+            self.chunks[:] = [np.concatenate(self.chunks)]
+        points = frame.to_sheet(self.chunks[0]) if self.chunks else np.zeros((0, 2))
         travels = frame.to_sheet(np.frombuffer(self.travels)).reshape(-1, 4)
         return Drawn(points, np.cumsum(sizes) - sizes, np.frombuffer(self.speeds).copy(),
                      np.frombuffer(self.layers, dtype=np.int64).astype(np.intp), tuple(self.names), travels,
