@@ -254,7 +254,10 @@ class Frame:
         if np.iscomplexobj(pts):
             pts = np.column_stack([pts.real, pts.imag])
         rel = pts.reshape(-1, 2) - np.asarray(self.corner)
-        return (rel @ np.asarray(self.matrix, dtype=float).T - self.offset) * self.units_per_mm
+        dev = rel @ np.asarray(self.matrix, dtype=float).T
+        dev -= self.offset   # in place, as :meth:`to_sheet`
+        dev *= self.units_per_mm
+        return dev
 
     def to_sheet(self, points: np.ndarray) -> np.ndarray:
         """Device units (N, 2) -> sheet mm, float (N, 2)."""

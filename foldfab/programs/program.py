@@ -37,6 +37,8 @@ if TYPE_CHECKING:
     from foldfab.programs.drawing import Drawn
 
 
+BLOCK = 1 << 16
+"""Bytes of text from which :class:`ProgramBuilder` joins what it holds (and hands it to its sink)."""
 Sink = Callable[[bytes], object]
 """Where a streaming writer puts its text, a block of ASCII bytes at a time (a file's ``write``)."""
 
@@ -152,20 +154,25 @@ class ProgramBuilder:
         """Where the writer says what it draws (``record``: see :mod:`~foldfab.programs.drawing`)."""
         self.chunks: list[str] = []
         self.blocks: list[str] = []
-        """Chunks joined a thousand at a time: a string per stroke costs its object header again."""
+        """Chunks joined a thousand (or :data:`BLOCK` bytes) at a time: a string per stroke costs
+        its object header again."""
+        self.pending = 0
         self.offset = 0
         self.sections: list[Section] = []
         self.pauses: list[PauseMark] = []
 
     def write(self, text: str) -> None:
+        if self.pending and self.pending + len(text) > BLOCK:   # a block is at most BLOCK bytes or one write
+            self._flush()
         self.chunks.append(text)
         self.offset += len(text)
-        if len(self.chunks) >= 1024:
+        self.pending += len(text)
+        if len(self.chunks) >= 1024 or self.pending >= BLOCK:
             self._flush()
 
     def _flush(self) -> None:
         block = "".join(self.chunks)
-        self.chunks = []
+        self.chunks, self.pending = [], 0
         if self.sink is None:
             self.blocks.append(block)
         else:

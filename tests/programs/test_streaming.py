@@ -71,9 +71,9 @@ def many_lines(device, count: int) -> PlotPlan:
 @pytest.mark.parametrize("name", PROFILES)
 def test_a_large_program_streams_in_many_blocks_and_the_same_bytes(name):
     device = load_device(name)
-    plan = many_lines(device, 600 if device.protocol == "ebb" else 3000)
+    plan = many_lines(device, 600 if device.protocol == "ebb" else 20000)   # HP-GL: several batches
     stream, blocks = streamed(plan, device)
-    assert len(blocks) > 2   # never the whole text at once
+    assert len(blocks) > 2 and max(map(len, blocks)) < stream.size / 2   # never the whole text at once
     assert_same_program(write_program(plan, device), stream, blocks)
 
 
