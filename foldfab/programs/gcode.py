@@ -26,6 +26,7 @@ and they do not refuse geometry outside the machine's reach.
 from __future__ import annotations
 
 import functools
+import re
 import textwrap
 from typing import TYPE_CHECKING
 
@@ -66,8 +67,19 @@ def write_gcode(plan: PlotPlan, device: DeviceProfile, sink: Sink | None = None)
 
 
 def _xy_words(points: np.ndarray) -> list[str]:
-    """``"X.. Y.."`` for each row of ``points`` (mm)."""
-    return [f"X{fmt_number(x, GCODE_DECIMALS)} Y{fmt_number(y, GCODE_DECIMALS)}" for x, y in points.tolist()]
+    """``"X.. Y.."`` for each row of ``points`` (mm), each number as :func:`fmt_number` writes
+    it: all of them formatted by one ``%`` and trimmed by three substitutions over the text."""
+    number = f"%.{GCODE_DECIMALS}f"
+    text = (f"X{number} Y{number}\n" * len(points)) % tuple(points.ravel().tolist())
+    text = _ZEROS.sub(r"\1", text)        # "12.300" -> "12.3", "12.000" -> "12."
+    text = _POINT.sub("", text)           # "12." -> "12"
+    text = _MINUS_ZERO.sub("0", text)     # "-0" (a small negative number rounded) -> "0"
+    return text.split("\n")[:-1]
+
+
+_ZEROS = re.compile(r"(\.\d*?)0+(?=[ \n])")
+_POINT = re.compile(r"\.(?=[ \n])")
+_MINUS_ZERO = re.compile(r"(?<=[XY])-0(?=[ \n])")
 
 
 def _ascii(text: str) -> str:
