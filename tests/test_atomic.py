@@ -56,12 +56,18 @@ def test_a_symbolic_link_is_written_through(tmp_path):
     assert sorted(p.name for p in (tmp_path / "real").iterdir()) == ["new.txt", "t.txt"]
 
 
+def reading_fifo(path):
+    """A FIFO at ``path`` and a thread reading it whole: (the thread, the list it appends to)."""
+    os.mkfifo(path)
+    received = []
+    reader = threading.Thread(target=lambda: received.append(path.read_bytes()))
+    reader.start()
+    return reader, received
+
+
 def test_a_fifo_is_written_in_place(tmp_path):
     fifo = tmp_path / "pipe"
-    os.mkfifo(fifo)
-    received = []
-    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
-    reader.start()
+    reader, received = reading_fifo(fifo)
     write_text(fifo, "through the pipe\n")
     reader.join(10)
     assert received == [b"through the pipe\n"]
@@ -105,10 +111,7 @@ def test_a_stream_stopped_midway_leaves_every_target_as_it_was(tmp_path, error):
 
 def test_a_stream_into_a_fifo_is_written_in_place_at_the_end(tmp_path):
     fifo = tmp_path / "pipe"
-    os.mkfifo(fifo)
-    received = []
-    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
-    reader.start()
+    reader, received = reading_fifo(fifo)
     with stream_files([fifo]) as [pipe]:
         pipe.write(b"through ")
         pipe.write(b"the pipe\n")
