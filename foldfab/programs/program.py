@@ -78,10 +78,10 @@ class Program:
     recording: Recording | None = field(default=None, compare=False, repr=False)
     """What the writer drew, as it wrote it (HP-GL and G-code writers record; None otherwise)."""
     size: int = field(default=-1, compare=False)
-    """Bytes of the program (its text's length; given where the text was streamed)."""
+    """Bytes of the program: its text's length, or as given where the text was streamed."""
 
     def __post_init__(self) -> None:
-        if self.size < 0:
+        if self.text is not None:
             object.__setattr__(self, "size", len(self.text))
 
     def drawn(self, frame: Frame) -> Drawn | None:

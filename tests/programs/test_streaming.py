@@ -159,3 +159,13 @@ def test_a_fabrication_without_its_layout_keeps_its_travel_before():
     assert lighter.layout is None and lighter.plan is fab.plan and lighter.program is fab.program
     assert lighter.travel_before == fab.travel_before and lighter.travel_after == fab.travel_after
     assert fab.travel_before["total"] > fab.travel_after["total"]
+
+
+def test_a_program_s_size_is_its_text_s_length_or_the_streamed_bytes():
+    from dataclasses import replace
+
+    device = load_device("graphtec-ce6000")
+    plan = many_lines(device, 50)
+    whole, (stream, blocks) = write_program(plan, device), streamed(plan, device)
+    assert stream.size == sum(map(len, blocks)) == whole.size
+    assert replace(whole, text="IN;").size == 3 and replace(stream, text="IN;PU0,0;").size == 9
