@@ -12,7 +12,8 @@ from __future__ import annotations
 import os
 import stat
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -23,13 +24,14 @@ def _umask() -> int:
 
 
 class _Staged:
-    """One file of a set: its data in a temporary file beside the target, or held for a
-    target that is written in place."""
+    """One file of a set: its data written, as it comes, to a temporary file beside the target,
+    or held for a target that is written in place."""
 
-    def __init__(self, path: str | os.PathLike, data: bytes) -> None:
+    def __init__(self, path: str | os.PathLike) -> None:
         self.given = path
         self.path = Path(path)
-        self.data = data
+        self.held: list[bytes] = []
+        self.handle = None
         self.tmp: str | None = None
         try:
             mode = os.stat(self.path).st_mode  # through a symbolic link
@@ -44,23 +46,48 @@ class _Staged:
         fd, self.tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=directory)
         try:
             os.chmod(self.tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file a new file's usual mode
-            with os.fdopen(fd, "wb") as handle:
-                handle.write(data)
-                handle.flush()
-                os.fsync(handle.fileno())
+            self.handle = os.fdopen(fd, "wb")
         except BaseException:
+            os.close(fd)
             self.discard()
             raise
+
+    def write(self, data: bytes) -> None:
+        """Append ``data`` (to the temporary file, or held for an in-place target)."""
+        if self.handle is None:
+            self.held.append(bytes(data))
+        else:
+            with _naming(self.given):
+                self.handle.write(data)
+
+    def read(self) -> bytes:
+        """Everything written so far (read back from the temporary file)."""
+        if self.handle is None:
+            return b"".join(self.held)
+        self.handle.flush()
+        with open(self.tmp, "rb") as handle:
+            return handle.read()
+
+    def finish(self) -> None:
+        """Flush the temporary file to the disk (before any file of the set is renamed)."""
+        if self.handle is not None:
+            self.handle.flush()
+            os.fsync(self.handle.fileno())
+            self.handle.close()
+            self.handle = None
 
     def commit(self) -> None:
         if self.tmp is None:
             with open(self.path, "wb") as handle:
-                handle.write(self.data)
+                handle.write(b"".join(self.held))
         else:
             os.replace(self.tmp, self.path)
             self.tmp = None
 
     def discard(self) -> None:
+        if self.handle is not None:
+            self.handle.close()
+            self.handle = None
         if self.tmp is not None:
             try:
                 os.unlink(self.tmp)
@@ -77,19 +104,42 @@ def write_files(files: Sequence[tuple[str | os.PathLike, bytes]]) -> None:
     written (the one step that cannot be undone: the targets renamed before it stay
     replaced).
     """
+    with stream_files([path for path, _ in files]) as staged:
+        for item, (_, data) in zip(staged, files):
+            item.write(data)
+
+
+@contextmanager
+def stream_files(paths: Sequence[str | os.PathLike]) -> Iterator[list[_Staged]]:
+    """Files written piece by piece, each whole or none of them: ``with stream_files(paths) as
+    files:`` gives one writer per path (``files[i].write(data)``, and ``files[i].read()`` for
+    what it holds so far); they replace their targets only when the block ends without an
+    exception, and an exception (Ctrl-C included) leaves every target as it was and no
+    temporary file.  ``OSError`` as for :func:`write_files`."""
     staged: list[_Staged] = []
-    path: str | os.PathLike = ""
     try:
-        for path, data in files:
-            staged.append(_Staged(path, data))
+        for path in paths:
+            with _naming(path):
+                staged.append(_Staged(path))
+        yield staged
+        for item in staged:
+            with _naming(item.given):
+                item.finish()
         for item in sorted(staged, key=lambda item: item.tmp is not None):  # in place first: they may fail
-            path = item.given
-            item.commit()
-    except OSError as exc:
-        raise OSError(exc.errno, exc.strerror or str(exc), os.fspath(path)) from exc
+            with _naming(item.given):
+                item.commit()
     finally:
         for item in staged:
             item.discard()
+
+
+@contextmanager
+def _naming(path: str | os.PathLike) -> Iterator[None]:
+    """An ``OSError`` inside names ``path`` as given."""
+    try:
+        yield
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror or str(exc), os.fspath(path)) from exc
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from foldfab.atomic import write_files, write_text
+from foldfab.atomic import stream_files, write_files, write_text
 
 
 def contents(folder):
@@ -56,12 +56,18 @@ def test_a_symbolic_link_is_written_through(tmp_path):
     assert sorted(p.name for p in (tmp_path / "real").iterdir()) == ["new.txt", "t.txt"]
 
 
+def reading_fifo(path):
+    """A FIFO at ``path`` and a thread reading it whole: (the thread, the list it appends to)."""
+    os.mkfifo(path)
+    received = []
+    reader = threading.Thread(target=lambda: received.append(path.read_bytes()))
+    reader.start()
+    return reader, received
+
+
 def test_a_fifo_is_written_in_place(tmp_path):
     fifo = tmp_path / "pipe"
-    os.mkfifo(fifo)
-    received = []
-    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
-    reader.start()
+    reader, received = reading_fifo(fifo)
     write_text(fifo, "through the pipe\n")
     reader.join(10)
     assert received == [b"through the pipe\n"]
@@ -75,3 +81,49 @@ def test_a_device_is_written_in_place_and_its_error_names_it():
         write_text("/dev/full", "no room")
     assert caught.value.filename == "/dev/full"
     assert stat.S_ISCHR(os.stat("/dev/full").st_mode)
+
+
+@settings(max_examples=40, deadline=None)
+@given(pieces=st.lists(st.lists(st.binary(max_size=300), max_size=8), min_size=1, max_size=3))
+def test_streamed_files_hold_their_pieces_joined(tmp_path_factory, pieces):
+    folder = tmp_path_factory.mktemp("stream")
+    paths = [folder / f"out{i}.bin" for i in range(len(pieces))]
+    with stream_files(paths) as files:
+        for file, chunks in zip(files, pieces):
+            for chunk in chunks:
+                file.write(chunk)
+            assert file.read() == b"".join(chunks)   # what it holds so far, read back
+        assert not any(path.exists() for path in paths)   # nothing in place before the end
+    assert contents(folder) == {path.name: b"".join(chunks) for path, chunks in zip(paths, pieces)}
+
+
+@pytest.mark.parametrize("error", [RuntimeError, KeyboardInterrupt, OSError])
+def test_a_stream_stopped_midway_leaves_every_target_as_it_was(tmp_path, error):
+    (tmp_path / "a.txt").write_bytes(b"old a")
+    with pytest.raises(error) as caught:
+        with stream_files([tmp_path / "a.txt", tmp_path / "b.txt"]) as (a, b):
+            a.write(b"new a, half")
+            b.write(b"new b, half")
+            raise error("stopped")
+    assert caught.value.args == ("stopped",)   # the caller's own error, as it was
+    assert contents(tmp_path) == {"a.txt": b"old a"}   # no temporary file either
+
+
+def test_a_stream_into_a_fifo_is_written_in_place_at_the_end(tmp_path):
+    fifo = tmp_path / "pipe"
+    reader, received = reading_fifo(fifo)
+    with stream_files([fifo]) as [pipe]:
+        pipe.write(b"through ")
+        pipe.write(b"the pipe\n")
+        assert pipe.read() == b"through the pipe\n"
+    reader.join(10)
+    assert received == [b"through the pipe\n"]
+
+
+def test_a_failing_stream_write_names_its_file(tmp_path, monkeypatch):
+    with pytest.raises(OSError) as caught:
+        with stream_files([tmp_path / "a.txt"]) as [file]:
+            monkeypatch.setattr(file.handle, "write", lambda data: (_ for _ in ()).throw(OSError(28, "No space")))
+            file.write(b"data")
+    assert caught.value.filename == str(tmp_path / "a.txt") and caught.value.errno == 28
+    assert contents(tmp_path) == {}

@@ -25,25 +25,30 @@ def _design(args: argparse.Namespace):
 
 
 def _fabricate(args: argparse.Namespace):
-    """Design, device profile and fabrication of the command's job: a split design's sheets
+    """Job, device profile and fabrication of the command's job: a split design's sheets
     in one program, with a pause to load each new sheet."""
-    design, device, [fab] = _fabricate_sheets(args, one_program=True)
-    return design, device, fab
+    job, device, [fab] = _fabricate_sheets(args, one_program=True)
+    return job, device, fab
 
 
-def _fabricate_sheets(args: argparse.Namespace, one_program: bool = False):
-    """Design, device profile and the fabrication of each sheet of the command's job (one,
-    unless it is split; ``one_program``: one for all of them)."""
+def _fabricate_sheets(args: argparse.Namespace, one_program: bool = False, write: bool = True):
+    """Job, device profile and the fabrication of each sheet of the command's job (one,
+    unless it is split; ``one_program``: one for all of them; ``write``: with its program).
+
+    The design goes once it is laid out: a large design's crease pattern and mesh would
+    otherwise stay through the optimization, the program and the report, the command's peak."""
     from foldfab.devices import load_device
-    from foldfab.fabricate import fabricate_sheets
+    from foldfab.fabricate import finish_sheets, lay_out_sheets
 
     device = load_device(args.device)
     design = _design(args)
-    fabs = fabricate_sheets(design, device, scale=getattr(args, "scale", None), split=getattr(args, "split", None),
-                            one_program=one_program)
-    for warning in (*design.warnings, *fabs[0].warnings):
+    sheets = lay_out_sheets(design, device, scale=getattr(args, "scale", None), split=getattr(args, "split", None))
+    job, warnings = design.job, design.warnings
+    del design
+    fabs = finish_sheets(sheets, device, one_program, write)
+    for warning in (*warnings, *fabs[0].warnings):
         print(f"foldfab: warning: {warning}", file=sys.stderr)
-    return design, device, fabs
+    return job, device, fabs
 
 
 def sheet_paths(path: Path, count: int) -> list[Path]:
@@ -112,7 +117,7 @@ def fabrication_report(fab, device, verify: bool = False) -> dict:
         "pauses": list(run.pauses),
         "estimated_time_s": round(times.total, 1),
         "lower_bound_s": round(times.lower_bound, 1),
-        "program_bytes": len(fab.program.text),
+        "program_bytes": fab.program.size,
     }
 
 

@@ -91,17 +91,28 @@ PROGRAM_SUFFIXES = {"hpgl": (".hpgl", ".plt", ".hpg"), "gcode": (".gcode", ".nc"
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    """Write the plotter program of a job for a device."""
-    from foldfab.atomic import write_files
+    """Write the plotter program of a job for a device: streamed into a temporary file beside
+    each output as it is written (never whole in memory), renamed into place once every
+    sheet's program is written and its report made (with ``--verify``, from the file read back)."""
+    from dataclasses import replace
+
+    from foldfab.atomic import stream_files
     from foldfab.devices import load_device
+    from foldfab.programs.languages import write_program
 
     output = Path(args.output)
     device = load_device(args.device)
     _check_output(output, "-o", PROGRAM_SUFFIXES[device.protocol])
-    design, device, fabs = _fabricate_sheets(args, args.one_program)
+    _, device, fabs = _fabricate_sheets(args, args.one_program, write=False)
+    fabs = [fab.without_layout() for fab in fabs]   # a large design's peak is in the writing and the report
     paths = sheet_paths(output, len(fabs))
-    infos = [fabrication_report(fab, device, args.verify) for fab in fabs]  # verified before a byte is written
-    write_files([(path, fab.program.text.encode()) for path, fab in zip(paths, fabs)])
+    infos = []
+    with stream_files(paths) as files:   # nothing replaced unless every sheet is written and verified
+        for number, file in enumerate(files):
+            fab = fabs[number] = replace(fabs[number], program=write_program(fabs[number].plan, device, file.write))
+            read_back = args.verify or fab.program.recording is None   # else the report is the writer's record
+            program = replace(fab.program, text=file.read().decode("ascii")) if read_back else fab.program
+            infos.append(fabrication_report(replace(fab, program=program), device, args.verify))
     _report(args, device, fabs, paths, infos)
     return 0
 
@@ -123,7 +134,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
     """Render the dry run: the program read back and drawn as the machine would move."""
     output = Path(args.output)
     _check_output(output, "-o", (".svg",))
-    design, device, fabs = _fabricate_sheets(args, args.one_program)
+    _, device, fabs = _fabricate_sheets(args, args.one_program)
     paths = sheet_paths(output, len(fabs))
     for path, fab in zip(paths, fabs):
         _write_preview(fab, device, path)

@@ -114,7 +114,7 @@ def _plot(args: argparse.Namespace, cancel, sending: list[bool], prompting: list
     checkpoint()
     if args.preview:
         _check_output(Path(args.preview), "--preview", (".svg",))
-    design, device, fab = _fabricate(args)
+    _, device, fab = _fabricate(args)
     if args.json:
         for warning in fab.warnings:
             print(json.dumps({"event": "warning", "message": warning}), flush=True)

@@ -53,11 +53,11 @@ def cmd_queue_add(args: argparse.Namespace) -> int:
     from foldfab.queue.snapshot import make_snapshot
 
     new = []
-    for job in args.jobs:
-        design, device, fab = _fabricate(argparse.Namespace(job=job, device=args.device, scale=args.scale,
-                                                            allow_penetration=args.allow_penetration,
-                                                            max_faces=args.max_faces, split=args.split))
-        snapshot = make_snapshot(design.job.path, design.job.text, design.job.name, device, fab.program)
+    for path in args.jobs:
+        job, device, fab = _fabricate(argparse.Namespace(job=path, device=args.device, scale=args.scale,
+                                                         allow_penetration=args.allow_penetration,
+                                                         max_faces=args.max_faces, split=args.split))
+        snapshot = make_snapshot(job.path, job.text, job.name, device, fab.program)
         new.append(NewJob.targeted(snapshot, args.port, args.plotter, device.port, args.priority, args.copies))
     store = _queue_store(args)
     ids = iter(store.add(new))

@@ -254,14 +254,20 @@ class Frame:
         if np.iscomplexobj(pts):
             pts = np.column_stack([pts.real, pts.imag])
         rel = pts.reshape(-1, 2) - np.asarray(self.corner)
-        return (rel @ np.asarray(self.matrix, dtype=float).T - self.offset) * self.units_per_mm
+        dev = rel @ np.asarray(self.matrix, dtype=float).T
+        dev -= self.offset   # in place, as :meth:`to_sheet`
+        dev *= self.units_per_mm
+        return dev
 
     def to_sheet(self, points: np.ndarray) -> np.ndarray:
         """Device units (N, 2) -> sheet mm, float (N, 2)."""
         import numpy as np
 
-        dev = np.asarray(points, dtype=float).reshape(-1, 2) / self.units_per_mm + self.offset
-        return dev @ np.asarray(self.matrix, dtype=float) + self.corner
+        dev = np.asarray(points, dtype=float).reshape(-1, 2) / self.units_per_mm
+        dev += self.offset   # in place: a million strokes' points are 50 MB an array
+        sheet = dev @ np.asarray(self.matrix, dtype=float)
+        sheet += self.corner
+        return sheet
 
     def device_rect_on_sheet(self, width: float, height: float) -> tuple[float, float, float, float]:
         """The device rectangle [0, width] x [0, height] (mm) as (x0, y0, x1, y1) on the sheet."""

@@ -73,7 +73,9 @@ class Recording:
         import numpy as np
 
         sizes = np.frombuffer(self.sizes, dtype=np.int64).astype(np.intp)
-        points = frame.to_sheet(np.concatenate(self.chunks)) if self.chunks else np.zeros((0, 2))
+        if len(self.chunks) > 1:   # kept as one array: the sweeps' and their join are not held at once
+            self.chunks[:] = [np.concatenate(self.chunks)]
+        points = frame.to_sheet(self.chunks[0]) if self.chunks else np.zeros((0, 2))
         travels = frame.to_sheet(np.frombuffer(self.travels)).reshape(-1, 4)
         return Drawn(points, np.cumsum(sizes) - sizes, np.frombuffer(self.speeds).copy(),
                      np.frombuffer(self.layers, dtype=np.int64).astype(np.intp), tuple(self.names), travels,
@@ -112,18 +114,26 @@ class Recorder:
         firsts, lasts = points[ends - np.asarray(sizes)], points[ends - 1]
         before = np.vstack([np.asarray(self.position)[None, :], lasts[:-1]])
         moved = np.flatnonzero(np.any(before != firsts, axis=1))
-        record.travels.extend(np.hstack([before[moved], firsts[moved]]).ravel())
-        record.leads_to.extend((moved + len(record.sizes)).tolist())
+        # as bytes: extending an array by a numpy array goes element by element
+        record.travels.frombytes(np.hstack([before[moved], firsts[moved]]).tobytes())
+        record.leads_to.frombytes((moved + len(record.sizes)).astype(np.int64).tobytes())
         record.chunks.append(points)
-        record.sizes.extend(np.asarray(sizes, dtype=np.int64).tolist())
-        record.speeds.extend([float(speed)] * len(sizes))
-        record.layers.extend([record.names.setdefault(layer, len(record.names))] * len(sizes))
+        record.sizes.frombytes(np.asarray(sizes, dtype=np.int64).tobytes())
+        record.speeds.frombytes(np.full(len(sizes), float(speed)).tobytes())
+        record.layers.frombytes(np.full(len(sizes), record.names.setdefault(layer, len(record.names)),
+                                        dtype=np.int64).tobytes())
         x, y = lasts[-1].tolist()
         self.position = (x, y)
 
     def ended(self, offset: int) -> None:
         """The next recorded stroke's bytes end at program ``offset`` (the writer says so as it writes)."""
         self.record.byte_ends.append(offset)
+
+    def ends(self, offsets: np.ndarray) -> None:
+        """:meth:`ended` for the next ``len(offsets)`` strokes at once."""
+        import numpy as np
+
+        self.record.byte_ends.frombytes(np.asarray(offsets, dtype=np.int64).tobytes())
 
 
 def verify(recorded: Drawn, read: Drawn, what: str) -> None:

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from foldfab.programs.estimate import move_times
-from foldfab.programs.program import Program, ProgramBuilder, Stop, Sweep, sweeps
+from foldfab.programs.program import Program, ProgramBuilder, Sink, Stop, Sweep, sweeps
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -41,10 +41,11 @@ VERTEX_MARK = "SM,1,0,0\r"
 """One millisecond at rest after a drawn vertex (how the reader tells vertices from slices)."""
 
 
-def write_ebb(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """The EBB program drawing ``plan`` on ``device``."""
+def write_ebb(plan: PlotPlan, device: DeviceProfile, sink: Sink | None = None) -> Program:
+    """The EBB program drawing ``plan`` on ``device``;
+    ``sink``: see :class:`~foldfab.programs.program.ProgramBuilder` (the text streamed, not kept)."""
     items = sweeps(plan, device)
-    out = _EbbWriter(device)
+    out = _EbbWriter(device, sink=sink)
     park = np.asarray(device.park_units, dtype=float)
     for item in items:
         if isinstance(item, Stop):
@@ -67,7 +68,7 @@ def homing(device: DeviceProfile) -> str:
     port = _Recorder(builder)
     ebb_motion.sendPenUp(port, int(round(device.motion.pen_lift_time * 1000)), verbose=False)
     ebb_motion.doAbsMove(port, home_rate(device), verbose=False)
-    return "".join(builder.chunks)
+    return builder.build().text
 
 
 def home_rate(device: DeviceProfile) -> int:
@@ -79,7 +80,7 @@ def travel(device: DeviceProfile, target: np.ndarray) -> str:
     """A pen-up move from home (the park position) to ``target`` (device units)."""
     writer = _EbbWriter(device, setup=False)
     writer.move(np.asarray(target, dtype=float), device.motion.travel_speed)
-    return "".join(writer.builder.chunks)
+    return writer.builder.build().text   # every block: a long move is thousands of commands
 
 
 class _Recorder:
@@ -99,11 +100,11 @@ class _Recorder:
 class _EbbWriter:
     """Tracks the motors' step counts and the pen, and writes EBB commands through plotink."""
 
-    def __init__(self, device: DeviceProfile, setup: bool = True):
+    def __init__(self, device: DeviceProfile, setup: bool = True, sink: Sink | None = None):
         from plotink import ebb_motion
 
         self.device, self.ebb, self.commands = device, device.ebb, ebb_motion
-        self.builder = ProgramBuilder("ebb", device)
+        self.builder = ProgramBuilder("ebb", device, sink=sink)
         self.port = _Recorder(self.builder)
         park = np.asarray(device.park_units, dtype=float)
         self.steps = _motor_steps(park)  # where the last job left the carriage

@@ -26,6 +26,7 @@ and they do not refuse geometry outside the machine's reach.
 from __future__ import annotations
 
 import functools
+import re
 import textwrap
 from typing import TYPE_CHECKING
 
@@ -33,7 +34,7 @@ import numpy as np
 
 from foldfab.devices import GCODE_DECIMALS
 from foldfab.errors import FoldfabError
-from foldfab.programs.program import Program, ProgramBuilder, Stop, Sweep, fmt_number, sweeps
+from foldfab.programs.program import Program, ProgramBuilder, Sink, Stop, Sweep, fmt_number, sweeps
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -42,10 +43,11 @@ if TYPE_CHECKING:
 MAX_LINE = 79  # characters before "\n": GRBL 1.1 holds 80 including the terminator
 
 
-def write_gcode(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """The GRBL 1.1 program drawing ``plan`` on ``device``."""
+def write_gcode(plan: PlotPlan, device: DeviceProfile, sink: Sink | None = None) -> Program:
+    """The GRBL 1.1 program drawing ``plan`` on ``device``;
+    ``sink``: see :class:`~foldfab.programs.program.ProgramBuilder` (the text streamed, not kept)."""
     items = sweeps(plan, device)
-    out = _GcodeWriter(device)
+    out = _GcodeWriter(device, sink)
     sheet = f"{fmt_number(plan.sheet[0], 1)} x {fmt_number(plan.sheet[1], 1)} mm"
     out.comment(f"foldfab program for {device.name}, sheet {sheet}")
     out.line("G21 G90 G17")
@@ -65,8 +67,19 @@ def write_gcode(plan: PlotPlan, device: DeviceProfile) -> Program:
 
 
 def _xy_words(points: np.ndarray) -> list[str]:
-    """``"X.. Y.."`` for each row of ``points`` (mm)."""
-    return [f"X{fmt_number(x, GCODE_DECIMALS)} Y{fmt_number(y, GCODE_DECIMALS)}" for x, y in points.tolist()]
+    """``"X.. Y.."`` for each row of ``points`` (mm), each number as :func:`fmt_number` writes
+    it: all of them formatted by one ``%`` and trimmed by three substitutions over the text."""
+    number = f"%.{GCODE_DECIMALS}f"
+    text = (f"X{number} Y{number}\n" * len(points)) % tuple(points.ravel().tolist())
+    text = _ZEROS.sub(r"\1", text)        # "12.300" -> "12.3", "12.000" -> "12."
+    text = _POINT.sub("", text)           # "12." -> "12"
+    text = _MINUS_ZERO.sub("0", text)     # "-0" (a small negative number rounded) -> "0"
+    return text.split("\n")[:-1]
+
+
+_ZEROS = re.compile(r"(\.\d*?)0+(?=[ \n])")
+_POINT = re.compile(r"\.(?=[ \n])")
+_MINUS_ZERO = re.compile(r"(?<=[XY])-0(?=[ \n])")
 
 
 def _ascii(text: str) -> str:
@@ -78,9 +91,9 @@ def _ascii(text: str) -> str:
 class _GcodeWriter:
     """Writes lines and tracks GRBL's modal state (motion mode, feed, tool up/down)."""
 
-    def __init__(self, device: DeviceProfile):
+    def __init__(self, device: DeviceProfile, sink: Sink | None = None):
         self.device = device
-        self.builder = ProgramBuilder("gcode", device, record=True)
+        self.builder = ProgramBuilder("gcode", device, record=True, sink=sink)
         self.motion: str | None = None
         self.feed: float | None = None
         self.position: str | None = None  # "X.. Y.." of the last move

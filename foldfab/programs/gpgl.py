@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from foldfab.programs.program import Program, ProgramBuilder, Stop, fmt_number, sweeps
+from foldfab.programs.program import Program, ProgramBuilder, Sink, Stop, fmt_number, sweeps
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
@@ -33,12 +33,13 @@ INITIALISE = "\x1b\x04"
 STATUS = "\x1b\x05"
 
 
-def write_gpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """The GP-GL program drawing ``plan`` on ``device``."""
+def write_gpgl(plan: PlotPlan, device: DeviceProfile, sink: Sink | None = None) -> Program:
+    """The GP-GL program drawing ``plan`` on ``device``;
+    ``sink``: see :class:`~foldfab.programs.program.ProgramBuilder` (the text streamed, not kept)."""
     import numpy as np
 
     items = sweeps(plan, device)
-    out = ProgramBuilder("gpgl", device)
+    out = ProgramBuilder("gpgl", device, sink=sink)
     park = "M{},{}".format(*device.park_units) + ETX
     holders = device.gpgl.tools
     width, height = (round(v * device.units_per_mm) for v in device.plottable_area)

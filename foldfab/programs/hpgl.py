@@ -20,21 +20,26 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from foldfab.errors import FoldfabError
-from foldfab.programs.program import Program, ProgramBuilder, Stop, fmt_number, sweeps
+from foldfab.programs.program import Program, ProgramBuilder, Sink, Stop, fmt_number, sweeps
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from foldfab.devices import DeviceProfile
     from foldfab.fabrication.plan import PlotPlan
 
 SPEED_DECIMALS = {"hp": 2, "graphtec": 0, "roland": 0}
+BATCH = 1 << 13
+"""Strokes turned into text at once (a few hundred kilobytes of it)."""
 
 
-def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """The HPGL program drawing ``plan`` on ``device``."""
+def write_hpgl(plan: PlotPlan, device: DeviceProfile, sink: Sink | None = None) -> Program:
+    """The HPGL program drawing ``plan`` on ``device``;
+    ``sink``: see :class:`~foldfab.programs.program.ProgramBuilder` (the text streamed, not kept)."""
     import numpy as np
 
     items = sweeps(plan, device)
-    out = ProgramBuilder("hpgl", device, record=True)
+    out = ProgramBuilder("hpgl", device, record=True, sink=sink)
     park_x, park_y = device.park_units
     park = f"PU{park_x},{park_y};SP0;"
     limit = device.buffer.instruction_limit
@@ -61,39 +66,78 @@ def write_hpgl(plan: PlotPlan, device: DeviceProfile) -> Program:
             speed = tool.speed
         rounded = np.rint(item.points).astype(np.int64)
         out.recorder.strokes(rounded, item.sizes, float(velocity) * 10, item.name)
-        for units, sizes in item.batches(rounded):   # one conversion to Python ints per batch, then slices
-            units = units.ravel().tolist()
-            start = 0
-            for end in (2 * np.cumsum(sizes)).tolist():
-                rest = ",".join(map(str, units[start + 2:end]))
-                if len(rest) + 3 > limit:
-                    rest = _split_pd(units[start + 2:end], limit, device)
-                out.write(f"PU{units[start]},{units[start + 1]};PD{rest};")
-                out.recorder.ended(out.offset)  # the next command lifts the pen
-                start = end
+        for units, sizes in item.batches(rounded, BATCH):
+            _write_strokes(out, units, sizes, limit, device)
     out.write(park)
     out.recorder.move(device.park_units)
     return out.build()
 
 
-def _split_pd(units: list[int], limit: int, device: DeviceProfile) -> str:
-    """The coordinates ``units`` (x, y, x, y, ...) as ``PD`` parameter lists joined by ``;PD``,
-    each instruction at most ``limit`` bytes (the pairs are independent, so the strokes
-    drawn are the same)."""
+def _write_strokes(out: ProgramBuilder, units: np.ndarray, sizes: np.ndarray, limit: int,
+                   device: DeviceProfile) -> None:
+    """Strokes of ``sizes`` points, their whole plotter ``units`` (M, 2) one after another, each as
+    ``PUx,y;PDx,y,...;``: a batch's coordinates turned into text at once, the strokes whose ``PD``
+    list is too long for one instruction (:func:`_split_pd`) one by one."""
+    import numpy as np
+
+    texts = list(map(str, units.ravel().tolist()))
+    widths = np.fromiter(map(len, texts), dtype=np.int64, count=len(texts))
+    ends = np.cumsum(sizes)
+    firsts = ends - sizes
+    digits = np.add.reduceat(widths, 2 * firsts) if len(sizes) else widths[:0]   # per stroke
+    pd_bytes = digits - widths[2 * firsts] - widths[2 * firsts + 1] + np.maximum(2 * sizes - 3, 0) + 3
+    done = 0
+    for long in [*np.flatnonzero(pd_bytes > limit).tolist(), len(sizes)]:
+        if done < long:
+            _write_short(out, texts[2 * firsts[done]:2 * ends[long - 1]], sizes[done:long], digits[done:long])
+        if long < len(sizes):
+            pair = texts[2 * firsts[long]:2 * ends[long]]
+            out.write(f"PU{pair[0]},{pair[1]};PD{_split_pd(pair[2:], limit, device)};")
+            out.recorder.ended(out.offset)  # the next command lifts the pen
+        done = long + 1
+
+
+def _write_short(out: ProgramBuilder, texts: list[str], sizes: np.ndarray, digits: np.ndarray) -> None:
+    """Strokes whose ``PD`` list fits one instruction, their coordinates' ``texts`` (x, y, x, y,
+    ...) one after another, ``digits`` their bytes per stroke: ``PUx,y;PDx,y,...;`` each, as one
+    join over coordinates and separators (a dot is ``PUx,y;PD;``)."""
+    import numpy as np
+
+    firsts = np.cumsum(sizes) - sizes
+    lines = sizes > 1
+    separators = np.full(len(texts) + 1, ",", dtype=object)   # before each coordinate, and the end
+    separators[2 * firsts[1:]] = np.where(lines[:-1], ";PU", ";PD;PU")   # the stroke before ends
+    separators[0] = "PU"
+    separators[2 * firsts[lines] + 2] = ";PD"
+    separators[-1] = ";" if lines[-1] else ";PD;"
+    joined = np.empty(2 * len(texts) + 1, dtype=object)
+    joined[0::2] = separators
+    joined[1::2] = texts
+    lengths = digits + np.where(lines, 2 * sizes + 4, 7)   # "PU" "," ";PD" ",".. ";"; a dot: "PU" "," ";PD;"
+    out.recorder.ends(out.offset + np.cumsum(lengths))   # each at the command that lifts the pen
+    out.write("".join(joined.tolist()))
+
+
+def _split_pd(texts: list[str], limit: int, device: DeviceProfile) -> str:
+    """The coordinates' ``texts`` (x, y, x, y, ...) as ``PD`` parameter lists joined by ``;PD``,
+    each instruction at most ``limit`` bytes, filled greedily pair by pair (the pairs are
+    independent, so the strokes drawn are the same)."""
+    import numpy as np
+
+    pairs = [f"{x},{y}" for x, y in zip(texts[::2], texts[1::2])]
+    taken = np.concatenate([[0], np.cumsum(np.fromiter(map(len, pairs), dtype=np.int64, count=len(pairs)) + 1)])
     pieces: list[str] = []
-    used = 0  # bytes of the instruction being filled, "PD" and commas included
-    for pair in map("{},{}".format, units[::2], units[1::2]):
-        if used and used + 1 + len(pair) + 1 > limit:
-            pieces.append(";PD")
-            used = 0
-        if used:
-            pieces.append(",")
-        elif len(pair) + 3 > limit:
-            need = len(pair) + 3
+    first = 0
+    while first < len(pairs):
+        # "PD", the pairs and a comma between two of them, ";": pairs first..last - 1 fit while
+        # taken[last] - taken[first] + 2 <= limit (at least one pair, which must fit alone)
+        last = max(int(np.searchsorted(taken, taken[first] + limit - 2, side="right")) - 1, first + 1)
+        if len(pairs[first]) + 3 > limit:
+            need = len(pairs[first]) + 3
             raise FoldfabError(
                 f"{device.name}: a {device.buffer.size}-byte buffer ([buffer] size) holds HP-GL "
-                f"instructions of at most {limit} bytes, too few for PD{pair}; ({need} bytes): "
+                f"instructions of at most {limit} bytes, too few for PD{pairs[first]}; ({need} bytes): "
                 f"set [buffer] size to at least {need + 3 if need <= 24 else 2 * need}")
-        pieces.append(pair)
-        used += len(pair) + (1 if used else 2)
-    return "".join(pieces)
+        pieces.append(",".join(pairs[first:last]))
+        first = last
+    return ";PD".join(pieces)

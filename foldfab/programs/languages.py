@@ -18,13 +18,15 @@ from foldfab.programs.hpgl import write_hpgl
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
     from foldfab.fabrication.plan import PlotPlan
-    from foldfab.programs.program import Program
+    from foldfab.programs.program import Program, Sink
 
-WRITERS: dict[str, Callable[[PlotPlan, DeviceProfile], Program]] = {"hpgl": write_hpgl, "gcode": write_gcode,
+WRITERS: dict[str, Callable[..., Program]] = {"hpgl": write_hpgl, "gcode": write_gcode,
                                                                        "ebb": write_ebb, "gpgl": write_gpgl}
 """The program writer of each protocol (``DeviceProfile.protocol``)."""
 
 
-def write_program(plan: PlotPlan, device: DeviceProfile) -> Program:
-    """Write ``plan`` in the device's language (HP-GL, G-code, EBB or GP-GL)."""
-    return WRITERS[device.protocol](plan, device)
+def write_program(plan: PlotPlan, device: DeviceProfile, sink: Sink | None = None) -> Program:
+    """Write ``plan`` in the device's language (HP-GL, G-code, EBB or GP-GL); ``sink`` (e.g. a
+    file's ``write``) takes the text a block at a time as it is made, and the program keeps
+    none (:attr:`~foldfab.programs.program.Program.text` None): the same bytes, never whole in memory."""
+    return WRITERS[device.protocol](plan, device, sink)

@@ -23,7 +23,7 @@ from __future__ import annotations
 import bisect
 from dataclasses import dataclass, field
 from operator import attrgetter
-from typing import TYPE_CHECKING, Union
+from typing import TYPE_CHECKING, Callable, Union
 
 from foldfab.errors import FoldfabError
 from foldfab.devices import Tool
@@ -35,6 +35,12 @@ if TYPE_CHECKING:
 
     from foldfab.devices import DeviceProfile, Frame
     from foldfab.programs.drawing import Drawn
+
+
+BLOCK = 1 << 16
+"""Bytes of text from which :class:`ProgramBuilder` joins what it holds (and hands it to its sink)."""
+Sink = Callable[[bytes], object]
+"""Where a streaming writer puts its text, a block of ASCII bytes at a time (a file's ``write``)."""
 
 
 @dataclass(frozen=True)
@@ -62,13 +68,21 @@ class PauseMark:
 class Program:
     """The exact program text for one device, with its sections and pauses."""
 
-    text: str
+    text: str | None
+    """None where the writer streamed the text to a file instead (:class:`ProgramBuilder`'s
+    ``sink``): a million strokes' text is tens of megabytes, twice over as bytes."""
     protocol: str
     device: str
     sections: tuple[Section, ...]
     pauses: tuple[PauseMark, ...]
     recording: Recording | None = field(default=None, compare=False, repr=False)
     """What the writer drew, as it wrote it (HP-GL and G-code writers record; None otherwise)."""
+    size: int = field(default=-1, compare=False)
+    """Bytes of the program: its text's length, or as given where the text was streamed."""
+
+    def __post_init__(self) -> None:
+        if self.text is not None:
+            object.__setattr__(self, "size", len(self.text))
 
     def drawn(self, frame: Frame) -> Drawn | None:
         """What the program draws on the sheet ``frame`` maps to, as its writer recorded it (no
@@ -131,23 +145,38 @@ class Stop:
 class ProgramBuilder:
     """Accumulates program text and records section and pause offsets."""
 
-    def __init__(self, protocol: str, device: DeviceProfile, record: bool = False):
-        self.protocol, self.device = protocol, device
+    def __init__(self, protocol: str, device: DeviceProfile, record: bool = False,
+                 sink: Sink | None = None):
+        self.protocol, self.device, self.sink = protocol, device, sink
+        """``sink``: where the text goes a block at a time as it is made (e.g. a file's ``write``),
+        instead of being kept: the program then has no :attr:`Program.text`."""
         self.recorder = Recorder(device.park_units) if record else None
         """Where the writer says what it draws (``record``: see :mod:`~foldfab.programs.drawing`)."""
         self.chunks: list[str] = []
         self.blocks: list[str] = []
-        """Chunks joined a thousand at a time: a string per stroke costs its object header again."""
+        """Chunks joined a thousand (or :data:`BLOCK` bytes) at a time: a string per stroke costs
+        its object header again."""
+        self.pending = 0
         self.offset = 0
         self.sections: list[Section] = []
         self.pauses: list[PauseMark] = []
 
     def write(self, text: str) -> None:
+        if self.pending and self.pending + len(text) > BLOCK:   # a block is at most BLOCK bytes or one write
+            self._flush()
         self.chunks.append(text)
         self.offset += len(text)
-        if len(self.chunks) >= 1024:
-            self.blocks.append("".join(self.chunks))
-            self.chunks = []
+        self.pending += len(text)
+        if len(self.chunks) >= 1024 or self.pending >= BLOCK:
+            self._flush()
+
+    def _flush(self) -> None:
+        block = "".join(self.chunks)
+        self.chunks, self.pending = [], 0
+        if self.sink is None:
+            self.blocks.append(block)
+        else:
+            self.sink(block.encode("ascii"))   # writers emit ASCII only; fail loudly otherwise
 
     def start(self, sweep: Sweep) -> None:
         self.sections.append(Section(self.offset, sweep.step, sweep.layer_id, sweep.name,
@@ -157,10 +186,14 @@ class ProgramBuilder:
         self.pauses.append(PauseMark(self.offset, stop.step, stop.message))
 
     def build(self) -> Program:
-        text = "".join(self.blocks + self.chunks)
-        text.encode("ascii")  # writers emit ASCII only; fail loudly otherwise
+        if self.sink is not None:
+            self._flush()
+            text = None
+        else:
+            text = "".join(self.blocks + self.chunks)
+            text.encode("ascii")  # writers emit ASCII only; fail loudly otherwise
         return Program(text, self.protocol, self.device.name, tuple(self.sections),
-                       tuple(self.pauses), self.recorder.record if self.recorder else None)
+                       tuple(self.pauses), self.recorder.record if self.recorder else None, self.offset)
 
 
 def sweeps(plan: PlotPlan, device: DeviceProfile) -> list[Union[Sweep, Stop]]:

@@ -124,9 +124,13 @@ def test_export_verify_refuses_a_corrupted_program_and_writes_nothing(tmp_path, 
 
     writer = languages.WRITERS["hpgl"]
 
-    def broken(plan, device):
+    def broken(plan, device, sink=None):   # export streams the text to its file: the file is what is checked
         program = writer(plan, device)
-        return replace(program, text=corrupt(program.text, "hpgl"))
+        text = corrupt(program.text, "hpgl")
+        if sink is None:
+            return replace(program, text=text)
+        sink(text.encode("ascii"))
+        return replace(program, text=None)
 
     monkeypatch.setitem(languages.WRITERS, "hpgl", broken)
     out = tmp_path / "hexagon.plt"
@@ -134,7 +138,7 @@ def test_export_verify_refuses_a_corrupted_program_and_writes_nothing(tmp_path, 
     out.unlink()
     rc, _, err = run(capsys, "export", HEXAGON, "--device", "graphtec-ce6000", "-o", out, "--verify")
     assert rc == 2 and "do not send it" in err and "Traceback" not in err
-    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []   # neither the program nor its temporary file
 
 
 def test_plot_verifies_what_it_sends_and_sends_nothing_else(monkeypatch, capsys):
@@ -144,7 +148,7 @@ def test_plot_verifies_what_it_sends_and_sends_nothing_else(monkeypatch, capsys)
     rc, out, err = run(capsys, "plot", HEXAGON, "--device", "graphtec-ce6000", "--port", "sim://?time=instant")
     assert rc == 0 and "estimate" in out, err
     monkeypatch.setitem(languages.WRITERS, "hpgl",
-                        lambda plan, device: replace(writer(plan, device), text=corrupt(writer(plan, device).text, "hpgl")))
+                        lambda plan, device, sink=None: replace(writer(plan, device), text=corrupt(writer(plan, device).text, "hpgl")))
     rc, out, err = run(capsys, "plot", HEXAGON, "--device", "graphtec-ce6000", "--port", "sim://?time=instant")
     assert rc == 2 and "do not send it" in err and "estimate" not in out
 

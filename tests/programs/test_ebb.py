@@ -176,3 +176,20 @@ def test_an_ebb_profile_needs_its_table(tmp_path):
     path.write_text(grbl)
     with pytest.raises(FoldfabError, match=r"no \[ebb\] table in a gcode profile"):
         load_device(str(path))
+
+
+def test_a_long_travel_keeps_every_command():
+    """A move of thousands of time slices (more than the writer joins into one block) arrives
+    whole: the motors' steps add up to the target."""
+    from dataclasses import replace
+
+    from foldfab.programs.ebb import _motor_steps, travel
+
+    device = load_device("axidraw-v3")
+    device = replace(device, ebb=replace(device.ebb, time_slice=0.001))
+    park, target = np.asarray(device.park_units, dtype=float), np.asarray([9000.0, 6000.0])
+    text = travel(device, target)
+    moves = [command.split(",") for command in text.split("\r")[:-1]]
+    assert len(moves) > 1024 and all(move[0] == "SM" for move in moves)
+    steps = np.sum([[int(move[2]), int(move[3])] for move in moves], axis=0)   # SM,ms,motor 1,motor 2
+    assert steps.tolist() == (_motor_steps(target) - _motor_steps(park)).tolist()

@@ -199,3 +199,15 @@ def test_pygcode_reads_every_example_program_and_cuts_what_we_read(name, job):
     assert len(theirs) == len(ours) > 0
     for points, stroke in zip(theirs, ours):
         assert np.allclose(points, frame.to_device(stroke.points), atol=1e-9, rtol=0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.floats(-1e5, 1e5, allow_nan=False), st.floats(-1e5, 1e5, allow_nan=False)) |
+                st.tuples(st.floats(-0.002, 0.002), st.sampled_from([0.0, -0.0, 0.0005, -0.0005, 10.0, 1e5])),
+                min_size=1, max_size=40))
+def test_coordinates_formatted_at_once_are_each_formatted_alone(points):
+    """The writer's bulk formatting of X/Y words is :func:`fmt_number`'s, number by number."""
+    from foldfab.programs.gcode import _xy_words
+
+    words = _xy_words(np.asarray(points, dtype=float))
+    assert words == [f"X{fmt_number(x, 3)} Y{fmt_number(y, 3)}" for x, y in points]
