@@ -102,7 +102,7 @@ def _ends_meet(lines, tolerance: float) -> bool:
 
     if len(lines) < 2:
         return False
-    ends = np.array([(line[0], line[-1]) for line in lines]).ravel()
+    ends = np.column_stack(_line_ends(lines.lines)).ravel()
     pairs = cKDTree(np.column_stack([ends.real, ends.imag])).query_pairs(tolerance, output_type="ndarray")
     return bool(np.any(pairs[:, 0] // 2 != pairs[:, 1] // 2))
 
@@ -136,12 +136,11 @@ def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | 
     A greedy walk depends much on where it starts: the roll's mountains, entered where its
     valleys end, end 12 m from the park position; walked from there and drawn backwards,
     they end beside it."""
-    from foldfab.fabrication.sort import nearest_order
+    from foldfab.fabrication.sort import nearest_orders
 
-    starts, ends = np.array([line[0] for line in lines]), np.array([line[-1] for line in lines])
+    begins = [pen] if goal is None or len(lines) < 2 else [pen, goal]
     ours = []
-    for begin in [pen] if goal is None or len(lines) < 2 else [pen, goal]:
-        order, flipped = nearest_order(starts, ends, begin)
+    for begin, (order, flipped) in zip(begins, nearest_orders(*_line_ends(lines), begins)):
         ordered = [lines[i][::-1] if turn else lines[i] for i, turn in zip(order.tolist(), flipped.tolist())]
         if begin is not pen:
             ordered = [line[::-1] for line in ordered[::-1]]
@@ -189,8 +188,7 @@ def _two_opt(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
 
 def _nearest_first(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
     """``lines`` with the one whose end is nearest ``pen`` moved first (and turned to start there)."""
-    starts = np.array([line[0] for line in lines])
-    ends = np.array([line[-1] for line in lines])
+    starts, ends = _line_ends(lines)
     dist = np.minimum(np.abs(starts - pen), np.abs(ends - pen))
     i = int(np.argmin(dist))
     first = lines[i] if abs(starts[i] - pen) <= abs(ends[i] - pen) else lines[i][::-1]
@@ -247,7 +245,11 @@ def _kept_whole(lines: list[np.ndarray], tolerance: float) -> np.ndarray:
 def _entries(lines, tolerance: float) -> np.ndarray:
     """Where the pen can begin drawing ``lines``: the ends of open lines, any vertex of a
     closed one (it is relooped to start there)."""
-    return np.concatenate([line if _closed(line, tolerance) else line[[0, -1]] for line in lines])
+    starts, ends = _line_ends(lines)
+    closed = _closed_all(lines, tolerance, starts, ends)
+    if not closed.any():
+        return np.column_stack([starts, ends]).ravel()
+    return np.concatenate([line if shut else line[[0, -1]] for line, shut in zip(lines, closed.tolist())])
 
 
 class _Onward:
@@ -292,7 +294,7 @@ def _onward(later: list, park: complex, tolerance: float) -> _Onward:
             loop = lines[0][:-1]
             onward = _Onward(loop, onward.costs(loop))
         else:
-            onward = _Onward(_entries(layer, tolerance))
+            onward = _Onward(_entries(lines, tolerance))
     return onward
 
 
@@ -301,13 +303,28 @@ def _closed(line: np.ndarray, tolerance: float) -> bool:
     return len(line) > 3 and abs(line[0] - line[-1]) <= tolerance
 
 
+def _closed_all(lines: list[np.ndarray], tolerance: float, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """:func:`_closed` of each of ``lines`` (first points ``starts``, last ``ends``) at once."""
+    sizes = np.fromiter(map(len, lines), dtype=np.intp, count=len(lines))
+    return (sizes > 3) & (np.abs(starts - ends) <= tolerance)
+
+
+def _line_ends(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The first and the last points of ``lines`` (at least one point each), as two arrays: through
+    one concatenation, since indexing 50,000 lines one by one costs more than copying them."""
+    if not len(lines):
+        return np.zeros(0, dtype=complex), np.zeros(0, dtype=complex)
+    stops = np.cumsum(np.fromiter(map(len, lines), dtype=np.intp, count=len(lines)))
+    points = np.concatenate(lines)
+    return points[np.append(0, stops[:-1])], points[stops - 1]
+
+
 def _entry_exit(lines: list[np.ndarray], pen: complex, onward: _Onward | None) -> float:
     """Travel from ``pen`` into ``lines``, inside them (reloop and the last line's turn change
     it) and from their end on (``onward``; None: nowhere)."""
     if not lines:
         return 0.0
-    starts = np.array([line[0] for line in lines])
-    ends = np.array([line[-1] for line in lines])
+    starts, ends = _line_ends(lines)
     inside = float(np.abs(starts[1:] - ends[:-1]).sum())
     return abs(starts[0] - pen) + inside + (0.0 if onward is None else onward.cost(ends[-1]))
 
@@ -329,15 +346,16 @@ def _reloop(lines: list[np.ndarray], pen: complex, tolerance: float, onward: _On
     last line, if closed, where coming in and going on (``onward``) add up to least."""
     import vpype as vp
 
-    out = []
-    for index, line in enumerate(lines):
-        if _closed(line, tolerance):
-            cost = np.abs(line[:-1] - pen)
-            if index == len(lines) - 1:
-                cost += onward.costs(line[:-1])
-            line = vp.reloop(line, int(np.argmin(cost)))
-        out.append(line)
-        pen = line[-1]
+    closed = np.flatnonzero(_closed_all(lines, tolerance, *_line_ends(lines)))
+    if not len(closed):
+        return lines
+    out = list(lines)
+    for index in closed.tolist():
+        line = lines[index]
+        cost = np.abs(line[:-1] - (out[index - 1][-1] if index else pen))
+        if index == len(lines) - 1:
+            cost += onward.costs(line[:-1])
+        out[index] = vp.reloop(line, int(np.argmin(cost)))
     return out
 
 

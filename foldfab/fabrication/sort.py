@@ -33,32 +33,77 @@ MARGIN = 1e-9
 from the ends the tree did not return, for the choice to stand without a closer look."""
 
 
+class _Ends:
+    """The ends of a layer's strokes (end ``2i``: stroke ``i``'s first point, ``2i + 1``: its last)
+    and the :data:`NEIGHBOURS` nearest ends of each, by one ``cKDTree`` query shared by every walk
+    over them and by :func:`_relocate`.  Flat arrays, read through ``memoryview`` in the walk: an
+    item of one is a Python number at a fraction of the cost of a NumPy scalar or of a ``tolist``."""
+
+    def __init__(self, starts: np.ndarray, ends: np.ndarray):
+        from scipy.spatial import cKDTree  # vpype's line index is built on it
+
+        self.points = np.column_stack([starts, ends]).ravel()
+        self.xy = np.column_stack([self.points.real, self.points.imag])
+        self.k = min(NEIGHBOURS, len(self.points))
+        dist, index = cKDTree(self.xy).query(self.xy, k=self.k) if len(self.points) else (np.zeros(0), np.zeros(0))
+        self.dist = np.ascontiguousarray(dist, dtype=float).reshape(-1)
+        self.index = np.ascontiguousarray(index, dtype=np.int32 if len(self.points) < 2**31 else np.intp).reshape(-1)
+
+    def near_strokes(self) -> np.ndarray:
+        """For each end, the strokes of its nearest ends (a row of ``k`` each)."""
+        return self.index.reshape(len(self.points), self.k) >> 1
+
+
 def greedy_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[np.ndarray, np.ndarray]:
     """The greedy nearest-end order of strokes from ``starts[i]`` to ``ends[i]`` (complex), from ``pen``.
 
     Returns the stroke indices in drawing order and, for each of them, whether it is drawn
     reversed (entered at its last point)."""
-    from scipy.spatial import cKDTree  # vpype's line index is built on it
+    return _greedy(_Ends(starts, ends), pen)
 
-    count = len(starts)
-    if count == 0:
-        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=bool)
-    points = np.column_stack([starts, ends]).ravel()  # end 2i: stroke i's first point, 2i + 1: its last
-    xy = np.column_stack([points.real, points.imag])
-    k = min(NEIGHBOURS, len(points))
-    near_d, near_i = cKDTree(xy).query(xy, k=k)
-    walk = _Walk(xy, near_d.reshape(len(points), k), near_i.reshape(len(points), k))
-    order = np.empty(count, dtype=np.intp)
-    flipped = np.empty(count, dtype=bool)
-    at = None  # the end the pen left by (None: the pen is not on a stroke end)
-    for step in range(count):
-        entry = walk.nearest(at, pen)
-        stroke = entry >> 1
-        walk.draw(stroke)
-        order[step], flipped[step] = stroke, entry & 1
+
+def _greedy(table: _Ends, pen: complex) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`greedy_order` over ``table``.  From a stroke's end, the pen's neighbours are that end's
+    row of the table: the first undrawn one is taken unless another undrawn one ties with it
+    within :data:`MARGIN` (then the exact nearest of those) or the row ends before the tie does;
+    otherwise :class:`_Walk` searches the undrawn ends."""
+    count = len(table.points) // 2
+    walk = _Walk(table.xy)
+    undrawn, k, total = walk.undrawn, table.k, len(table.points)
+    dist, index = memoryview(table.dist), memoryview(table.index)
+    x, y = memoryview(walk.x), memoryview(walk.y)
+    entries = []
+    at = -1  # the end the pen left by (-1: the pen is not on a stroke end)
+    for _ in range(count):
+        entry = -1
+        if at >= 0:
+            j, stop = at * k, at * k + k
+            while j < stop and not undrawn[index[j] >> 1]:
+                j += 1
+            if j < stop:
+                entry = index[j]
+                bound = dist[j] * (1 + MARGIN) + 1e-12
+                j += 1
+                if j == stop or dist[j] <= bound:  # a tie, or the row ends: the exact nearest of the tied
+                    px, py = x[at], y[at]
+                    dx, dy = x[entry] - px, y[entry] - py
+                    best = (dx * dx + dy * dy, entry)
+                    while j < stop and dist[j] <= bound:
+                        other = index[j]
+                        if undrawn[other >> 1]:
+                            dx, dy = x[other] - px, y[other] - py
+                            best = min(best, (dx * dx + dy * dy, other))
+                        j += 1
+                    entry = best[1] if j < stop or k == total else -1  # the tie may go on beyond the row
+            pen = complex(x[at], y[at])
+        if entry < 0:
+            entry = walk.nearest(pen)
+        undrawn[entry >> 1] = 0
+        walk.left -= 2
+        entries.append(entry)
         at = entry ^ 1
-        pen = points[at]
-    return order, flipped
+    entries = np.array(entries, dtype=np.intp)
+    return entries >> 1, (entries & 1).astype(bool)
 
 
 def nearest_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[np.ndarray, np.ndarray]:
@@ -71,31 +116,35 @@ def nearest_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[n
     first) is moved, either way round, between two strokes that have an end among its
     :data:`NEIGHBOURS` nearest ends, where that costs least, if that costs less than it saves:
     the result never travels more than the greedy walk."""
-    order, flipped = greedy_order(starts, ends, pen)
-    if len(order) < 3:
-        return order, flipped
-    return _relocate(order, flipped, starts, ends, pen)
+    return nearest_orders(starts, ends, [pen])[0]
 
 
-def _relocate(order: np.ndarray, flipped: np.ndarray, starts: np.ndarray, ends: np.ndarray,
+def nearest_orders(starts: np.ndarray, ends: np.ndarray, pens: list[complex]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`nearest_order` from each of ``pens``, the strokes' ends and their neighbours found once."""
+    table = _Ends(starts, ends)
+    out = []
+    for pen in pens:
+        order, flipped = _greedy(table, pen)
+        out.append((order, flipped) if len(order) < 3 else _relocate(order, flipped, table, pen))
+    return out
+
+
+def _relocate(order: np.ndarray, flipped: np.ndarray, table: _Ends,
               pen: complex) -> tuple[np.ndarray, np.ndarray]:
     """See :func:`nearest_order`: the strokes in a linked list (``head``: the pen), each moved once."""
-    from scipy.spatial import cKDTree
-
     count = len(order)
-    points = np.column_stack([starts, ends]).ravel()
-    xy = np.column_stack([points.real, points.imag])
-    near = cKDTree(xy).query(xy, k=min(NEIGHBOURS, len(points)))[1] >> 1  # strokes with an end near each end
+    points = table.points
+    near = table.near_strokes()  # strokes with an end near each end
     x, y = points.real.tolist() + [pen.real], points.imag.tolist() + [pen.imag]
     head = count
     turned = np.zeros(count + 1, dtype=bool)
     turned[order] = flipped
     turned = turned.tolist()
-    after = [-1] * (count + 1)  # the next stroke (-1: none)
-    before = [-1] * (count + 1)
-    chain = [head, *order.tolist()]
-    for a, b in zip(chain, chain[1:]):
-        after[a], before[b] = b, a
+    chain = np.concatenate([[head], order])
+    after = np.full(count + 1, -1, dtype=np.intp)  # the next stroke (-1: none)
+    before = np.full(count + 1, -1, dtype=np.intp)
+    after[chain[:-1]], before[chain[1:]] = chain[1:], chain[:-1]
+    after, before = after.tolist(), before.tolist()
 
     def jump(a: int, b: int) -> float:  # from the end of stroke a (head: the pen) into stroke b
         if b < 0:
@@ -104,9 +153,12 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, starts: np.ndarray, ends: 
         into = 2 * b + turned[b]
         return math.hypot(x[out] - x[into], y[out] - y[into])
 
-    steps = np.array([jump(a, b) for a, b in zip(chain, chain[1:])])
+    into = 2 * order + flipped
+    left = np.concatenate([[pen], points[into[:-1] ^ 1]])  # where the pen is before each stroke
+    steps = np.hypot((points[into] - left).real, (points[into] - left).imag)
     saves = steps + np.append(steps[1:], 0)  # leaving: the jumps in and out (the bridge is subtracted below)
     mean = float(steps.mean())
+    order = order.tolist()
     for stroke in np.argsort(-saves, kind="stable").tolist():
         if saves[stroke] <= mean:
             break
@@ -144,30 +196,18 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, starts: np.ndarray, ends: 
 
 
 class _Walk:
-    """The undrawn stroke ends, and the nearest of them to a point."""
+    """The undrawn strokes (by stroke), and the nearest undrawn end to a point by a second tree."""
 
-    def __init__(self, xy: np.ndarray, near_d: np.ndarray, near_i: np.ndarray):
-        self.xy, self.near_d, self.near_i = xy, near_d, near_i
-        self.x, self.y = xy[:, 0].tolist(), xy[:, 1].tolist()
-        self.undrawn = bytearray(b"\x01") * (len(xy) // 2)  # by stroke
+    def __init__(self, xy: np.ndarray):
+        self.xy = xy
+        self.x, self.y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+        self.undrawn = bytearray(b"\x01") * (len(xy) // 2)
         self.left = len(xy)  # undrawn ends
         self.tree = None  # over the ends undrawn when it was built: ``self.ids``
         self.ids = np.zeros(0, dtype=np.intp)
 
-    def draw(self, stroke: int) -> None:
-        self.undrawn[stroke] = 0
-        self.left -= 2
-
-    def nearest(self, at: int | None, pen: complex) -> int:
-        """The undrawn end nearest ``pen`` (which is end ``at``, when not None)."""
-        if at is not None:
-            found = self._pick(self.near_d[at].tolist(), self.near_i[at].tolist(), pen, len(self.xy))
-            if found is not None:
-                return found
-        return self._search(pen)
-
-    def _search(self, pen: complex) -> int:
-        """The nearest undrawn end by the second tree, asked for twice as many ends until it answers."""
+    def nearest(self, pen: complex) -> int:
+        """The nearest undrawn end to ``pen`` by the second tree, asked for twice as many ends until it answers."""
         from scipy.spatial import cKDTree
 
         if self.tree is None or 2 * self.left < len(self.ids):
