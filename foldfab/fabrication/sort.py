@@ -74,10 +74,11 @@ def _greedy(table: _Ends, pen: complex) -> tuple[np.ndarray, np.ndarray]:
     x, y = memoryview(walk.x), memoryview(walk.y)
     entries = []
     at = -1  # the end the pen left by (-1: the pen is not on a stroke end)
-    for _ in range(count):
+    for step in range(count):
         entry = -1
         if at >= 0:
-            j, stop = at * k, at * k + k
+            j = at * k
+            stop = j + k
             while j < stop and not undrawn[index[j] >> 1]:
                 j += 1
             if j < stop:
@@ -95,11 +96,9 @@ def _greedy(table: _Ends, pen: complex) -> tuple[np.ndarray, np.ndarray]:
                             best = min(best, (dx * dx + dy * dy, other))
                         j += 1
                     entry = best[1] if j < stop or k == total else -1  # the tie may go on beyond the row
-            pen = complex(x[at], y[at])
         if entry < 0:
-            entry = walk.nearest(pen)
+            entry = walk.nearest(pen if at < 0 else complex(x[at], y[at]), total - 2 * step)
         undrawn[entry >> 1] = 0
-        walk.left -= 2
         entries.append(entry)
         at = entry ^ 1
     entries = np.array(entries, dtype=np.intp)
@@ -202,15 +201,15 @@ class _Walk:
         self.xy = xy
         self.x, self.y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
         self.undrawn = bytearray(b"\x01") * (len(xy) // 2)
-        self.left = len(xy)  # undrawn ends
         self.tree = None  # over the ends undrawn when it was built: ``self.ids``
         self.ids = np.zeros(0, dtype=np.intp)
 
-    def nearest(self, pen: complex) -> int:
-        """The nearest undrawn end to ``pen`` by the second tree, asked for twice as many ends until it answers."""
+    def nearest(self, pen: complex, left: int) -> int:
+        """The nearest undrawn end to ``pen`` (of ``left`` undrawn ends) by the second tree, asked for
+        twice as many ends until it answers."""
         from scipy.spatial import cKDTree
 
-        if self.tree is None or 2 * self.left < len(self.ids):
+        if self.tree is None or 2 * left < len(self.ids):
             alive = np.repeat(np.frombuffer(bytes(self.undrawn), dtype=np.uint8).astype(bool), 2)
             self.ids = np.flatnonzero(alive)
             self.tree = cKDTree(self.xy[self.ids])
