@@ -19,7 +19,7 @@ from foldfab.fabrication import sort
 from foldfab.fabrication.layout import build_plan, park_position
 from foldfab.fabrication.optimize import travel
 from foldfab.fabrication.plan import PlotPlan
-from foldfab.fabrication.sort import greedy_order, nearest_order
+from foldfab.fabrication.sort import greedy_order, nearest_order, nearest_orders
 from foldfab.fabrication.spec import parse_fabrication
 
 
@@ -93,6 +93,21 @@ def test_the_order_draws_every_stroke_once_and_never_travels_more_than_the_greed
     assert np.array_equal(np.where(flipped, out, into), starts[order])
     assert np.array_equal(np.where(flipped, into, out), ends[order])
     assert pen_up(starts, ends, order, flipped, pen) <= pen_up(starts, ends, *reference(starts, ends, pen), pen) + 1e-9
+
+
+@settings(max_examples=100, deadline=None)
+@given(raw=st.lists(stroke, max_size=60), step=grid, pens=st.lists(st.tuples(coordinate, coordinate), min_size=1,
+                                                                     max_size=3))
+def test_orders_from_several_pens_share_one_neighbour_query_and_are_each_the_order_from_that_pen(raw, step, pens):
+    """The walks from the pen and from the goal share the layer's neighbour table: neither walk may
+    leave a mark on it that changes the other (each as if sorted alone)."""
+    starts, ends = strokes_of(raw, step)
+    pens = [complex(*pen) * step for pen in pens]
+    together = nearest_orders(starts, ends, pens)
+    assert len(together) == len(pens)
+    for pen, (order, flipped) in zip(pens, together):
+        alone = nearest_order(starts, ends, pen)
+        assert (order.tolist(), flipped.tolist()) == (alone[0].tolist(), alone[1].tolist())
 
 
 def test_on_random_sets_moving_stragglers_travels_less():
