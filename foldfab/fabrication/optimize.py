@@ -64,12 +64,9 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
             pen = start
             continue
         lines = plan.document.layers[step.layer_id]
-        result = lines.lines
-        if _ends_meet(lines, resolution):
-            merged = _collection(result)
-            merged.merge(tolerance=resolution, flip=True)
-            result = merged.lines
-        result = [line for line in result if len(line)]
+        if ("lines", index) not in cache:
+            cache["lines", index] = _merged(lines.lines, resolution)
+        result, table = cache["lines", index]
         onward = _onward(meets[index + 1:], start, resolution)
         orders = []
         if 1 < len(result) <= TWO_OPT_LINES:
@@ -78,7 +75,7 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
             orders.append(cache["theirs", index, pen])
         if mixed or not orders:
             if ("ours", index, pen) not in cache:
-                cache["ours", index, pen] = _ours(result, two_opt, pen, onward.goal())
+                cache["ours", index, pen] = _ours(result, two_opt, pen, onward.goal(), table)
             orders[:0] = cache["ours", index, pen]
         # A sorted order backwards (each line reversed) has the same inner travel: take the
         # order and direction that arrive and leave by less.
@@ -94,17 +91,21 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
     return PlotPlan(doc, list(plan.steps), plan.sheet)
 
 
-def _ends_meet(lines, tolerance: float) -> bool:
-    """Do ends of two different lines lie within ``tolerance``?  If not, vpype's ``linemerge``
-    would merge nothing (scoring already chained every join at a shared vertex), and on a
-    layer of 50,000 lines it takes seconds to find that out."""
-    from scipy.spatial import cKDTree  # vpype's line index is built on it
+def _merged(lines: list[np.ndarray], tolerance: float):
+    """``lines`` joined where their ends meet (vpype's ``linemerge``), and the table of their ends
+    (:class:`foldfab.fabrication.sort.StrokeEnds`, for the sort).  vpype is asked only when ends of
+    two lines lie within ``tolerance``: scoring has chained every join at a shared vertex already,
+    and on a layer of 50,000 lines vpype takes seconds to find nothing to merge."""
+    from foldfab.fabrication.sort import StrokeEnds
 
-    if len(lines) < 2:
-        return False
-    ends = np.column_stack(_line_ends(lines.lines)).ravel()
-    pairs = cKDTree(np.column_stack([ends.real, ends.imag])).query_pairs(tolerance, output_type="ndarray")
-    return bool(np.any(pairs[:, 0] // 2 != pairs[:, 1] // 2))
+    lines = [line for line in lines if len(line)]
+    table = StrokeEnds(*_line_ends(lines))
+    if not table.meet(tolerance):
+        return lines, table
+    merged = _collection(lines)
+    merged.merge(tolerance=tolerance, flip=True)
+    lines = [line for line in merged.lines if len(line)]
+    return lines, StrokeEnds(*_line_ends(lines))
 
 
 def _collection(lines: list[np.ndarray]):
@@ -127,7 +128,8 @@ def _vpype_operation(name: str):
     return getattr(operations, name).callback.__wrapped__
 
 
-def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | None) -> list[list[np.ndarray]]:
+def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | None,
+          table=None) -> list[list[np.ndarray]]:
     """foldfab's orders of ``lines`` from ``pen``, each line either way round: the greedy
     nearest-end order over the whole layer with its stragglers moved
     (:func:`foldfab.fabrication.sort.nearest_order`), and when the pen should end near ``goal``
@@ -135,12 +137,13 @@ def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | 
     from ``goal`` backwards; each, with ``two_opt``, improved window by window (:func:`_two_opt`).
     A greedy walk depends much on where it starts: the roll's mountains, entered where its
     valleys end, end 12 m from the park position; walked from there and drawn backwards,
-    they end beside it."""
-    from foldfab.fabrication.sort import nearest_orders
+    they end beside it.  ``table``: the ends of ``lines`` (:class:`foldfab.fabrication.sort.StrokeEnds`)
+    when already found."""
+    from foldfab.fabrication.sort import StrokeEnds, nearest_orders
 
     begins = [pen] if goal is None or len(lines) < 2 else [pen, goal]
     ours = []
-    for begin, (order, flipped) in zip(begins, nearest_orders(*_line_ends(lines), begins)):
+    for begin, (order, flipped) in zip(begins, nearest_orders(table or StrokeEnds(*_line_ends(lines)), begins)):
         ordered = [lines[i][::-1] if turn else lines[i] for i, turn in zip(order.tolist(), flipped.tolist())]
         if begin is not pen:
             ordered = [line[::-1] for line in ordered[::-1]]

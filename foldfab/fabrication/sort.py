@@ -26,17 +26,20 @@ import math
 import numpy as np
 
 NEIGHBOURS = 16
-"""Nearest ends looked up for every stroke end at once."""
+"""Nearest ends looked up for every stroke end at once (at least 3: :meth:`StrokeEnds.meet`)."""
+
+FIRST = 4
+"""Nearest other ends of each end kept in the exact order of the walk's choice (:class:`StrokeEnds`)."""
 
 MARGIN = 1e-9
 """Relative margin by which the tree's distances (rounded differently) must separate a candidate
 from the ends the tree did not return, for the choice to stand without a closer look."""
 
 
-class _Ends:
+class StrokeEnds:
     """The ends of a layer's strokes (end ``2i``: stroke ``i``'s first point, ``2i + 1``: its last)
     and the :data:`NEIGHBOURS` nearest ends of each, by one ``cKDTree`` query shared by every walk
-    over them and by :func:`_relocate`.  Flat arrays, read through ``memoryview`` in the walk: an
+    over them, by :func:`_relocate` and by :meth:`meet`.  Flat arrays, read through ``memoryview`` in the walk: an
     item of one is a Python number at a fraction of the cost of a NumPy scalar or of a ``tolist``."""
 
     def __init__(self, starts: np.ndarray, ends: np.ndarray):
@@ -48,6 +51,32 @@ class _Ends:
         dist, index = cKDTree(self.xy).query(self.xy, k=self.k) if len(self.points) else (np.zeros(0), np.zeros(0))
         self.dist = np.ascontiguousarray(dist, dtype=float).reshape(-1)
         self.index = np.ascontiguousarray(index, dtype=np.int32 if len(self.points) < 2**31 else np.intp).reshape(-1)
+        self.width = min(FIRST, self.k)
+        self.first = self._first()
+
+    def _first(self) -> np.ndarray:
+        """For each end, the :data:`FIRST` nearest ends of other strokes in the walk's order of choice (by
+        ``dx*dx + dy*dy``, ties to the lowest end), each as far as its row shows it: -1 from the first
+        one that an end beyond the row might precede (by :data:`MARGIN`).  Leaving by that end, the
+        pen's next stroke is the first of them still undrawn, if no -1 comes before it: every end
+        nearer than that one is drawn (its own stroke's other end too)."""
+        count, k = len(self.points), self.k
+        rows, dist = self.index.reshape(count, k).astype(np.intp), self.dist.reshape(count, k)
+        dx, dy = self.xy[rows, 0] - self.xy[:, :1], self.xy[rows, 1] - self.xy[:, 1:]
+        key = np.where((rows >> 1) == (np.arange(count) >> 1)[:, None], np.inf, dx * dx + dy * dy)
+        seen = dist * (1 + MARGIN) + 1e-12 < dist[:, -1:] if k < count else np.isfinite(dist)
+        chosen = np.lexsort((rows, key), axis=1)[:, :self.width]
+        known = np.logical_and.accumulate(np.take_along_axis(seen & np.isfinite(key), chosen, axis=1), axis=1)
+        first = np.where(known, np.take_along_axis(rows, chosen, axis=1), -1)
+        return np.ascontiguousarray(first, dtype=self.index.dtype).reshape(-1)
+
+    def meet(self, tolerance: float) -> bool:
+        """Do ends of two different strokes lie within ``tolerance`` (or a rounding more)?  If two
+        do, one of them is among the other's nearest ends, or so are two ends of other strokes
+        as near (a stroke has two ends of its own)."""
+        count = len(self.points)
+        other = (self.index.reshape(count, self.k) >> 1) != (np.arange(count) >> 1)[:, None]
+        return bool(np.any(other & (self.dist.reshape(count, self.k) <= tolerance * (1 + MARGIN) + 1e-12)))
 
     def near_strokes(self) -> np.ndarray:
         """For each end, the strokes of its nearest ends (a row of ``k`` each)."""
@@ -59,10 +88,10 @@ def greedy_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[np
 
     Returns the stroke indices in drawing order and, for each of them, whether it is drawn
     reversed (entered at its last point)."""
-    return _greedy(_Ends(starts, ends), pen)
+    return _greedy(StrokeEnds(starts, ends), pen)
 
 
-def _greedy(table: _Ends, pen: complex) -> tuple[np.ndarray, np.ndarray]:
+def _greedy(table: StrokeEnds, pen: complex) -> tuple[np.ndarray, np.ndarray]:
     """:func:`greedy_order` over ``table``.  From a stroke's end, the pen's neighbours are that end's
     row of the table: the first undrawn one is taken unless another undrawn one ties with it
     within :data:`MARGIN` (then the exact nearest of those) or the row ends before the tie does;
@@ -70,13 +99,23 @@ def _greedy(table: _Ends, pen: complex) -> tuple[np.ndarray, np.ndarray]:
     count = len(table.points) // 2
     walk = _Walk(table.xy)
     undrawn, k, total = walk.undrawn, table.k, len(table.points)
-    dist, index = memoryview(table.dist), memoryview(table.index)
+    dist, index, first, width = memoryview(table.dist), memoryview(table.index), memoryview(table.first), table.width
     x, y = memoryview(walk.x), memoryview(walk.y)
     entries = []
     at = -1  # the end the pen left by (-1: the pen is not on a stroke end)
     for step in range(count):
         entry = -1
         if at >= 0:
+            j = at * width
+            stop = j + width
+            while j < stop:
+                entry = first[j]
+                if entry < 0 or undrawn[entry >> 1]:
+                    break
+                j += 1
+            else:
+                entry = -1
+        if entry < 0 and at >= 0:
             j = at * k
             stop = j + k
             while j < stop and not undrawn[index[j] >> 1]:
@@ -115,12 +154,11 @@ def nearest_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[n
     first) is moved, either way round, between two strokes that have an end among its
     :data:`NEIGHBOURS` nearest ends, where that costs least, if that costs less than it saves:
     the result never travels more than the greedy walk."""
-    return nearest_orders(starts, ends, [pen])[0]
+    return nearest_orders(StrokeEnds(starts, ends), [pen])[0]
 
 
-def nearest_orders(starts: np.ndarray, ends: np.ndarray, pens: list[complex]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """:func:`nearest_order` from each of ``pens``, the strokes' ends and their neighbours found once."""
-    table = _Ends(starts, ends)
+def nearest_orders(table: StrokeEnds, pens: list[complex]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`nearest_order` of the strokes of ``table`` from each of ``pens``."""
     out = []
     for pen in pens:
         order, flipped = _greedy(table, pen)
@@ -128,7 +166,7 @@ def nearest_orders(starts: np.ndarray, ends: np.ndarray, pens: list[complex]) ->
     return out
 
 
-def _relocate(order: np.ndarray, flipped: np.ndarray, table: _Ends,
+def _relocate(order: np.ndarray, flipped: np.ndarray, table: StrokeEnds,
               pen: complex) -> tuple[np.ndarray, np.ndarray]:
     """See :func:`nearest_order`: the strokes in a linked list (``head``: the pen), each moved once."""
     count = len(order)
