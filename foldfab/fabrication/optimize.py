@@ -66,7 +66,7 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
         lines = plan.document.layers[step.layer_id]
         if ("lines", index) not in cache:
             cache["lines", index] = _merged(lines.lines, resolution)
-        result, table = cache["lines", index]
+        result, table, loops = cache["lines", index]
         onward = _onward(meets[index + 1:], start, resolution)
         orders = []
         if 1 < len(result) <= TWO_OPT_LINES:
@@ -79,7 +79,7 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
             orders[:0] = cache["ours", index, pen]
         # A sorted order backwards (each line reversed) has the same inner travel: take the
         # order and direction that arrive and leave by less.
-        candidates = [_end_towards(_reloop(order, pen, resolution, onward), pen, onward)
+        candidates = [_end_towards(_reloop(order, pen, resolution, onward) if loops else order, pen, onward)
                       for ordered in orders for order in (ordered, [line[::-1] for line in ordered[::-1]])]
         result = min(candidates, key=lambda c: _entry_exit(c, pen, onward))
         if step.name not in keep_vertices:  # last: simplifying keeps the ends of every line
@@ -92,20 +92,23 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
 
 
 def _merged(lines: list[np.ndarray], tolerance: float):
-    """``lines`` joined where their ends meet (vpype's ``linemerge``), and the table of their ends
-    (:class:`foldfab.fabrication.sort.StrokeEnds`, for the sort).  vpype is asked only when ends of
+    """``lines`` joined where their ends meet (vpype's ``linemerge``), the table of their ends
+    (:class:`foldfab.fabrication.sort.StrokeEnds`, for the sort) and whether any is closed
+    (:func:`_reloop` has work).  vpype is asked only when ends of
     two lines lie within ``tolerance``: scoring has chained every join at a shared vertex already,
     and on a layer of 50,000 lines vpype takes seconds to find nothing to merge."""
     from foldfab.fabrication.sort import StrokeEnds
 
     lines = [line for line in lines if len(line)]
-    table = StrokeEnds(*_line_ends(lines))
-    if not table.meet(tolerance):
-        return lines, table
-    merged = _collection(lines)
-    merged.merge(tolerance=tolerance, flip=True)
-    lines = [line for line in merged.lines if len(line)]
-    return lines, StrokeEnds(*_line_ends(lines))
+    ends = _line_ends(lines)
+    table = StrokeEnds(*ends)
+    if table.meet(tolerance):
+        merged = _collection(lines)
+        merged.merge(tolerance=tolerance, flip=True)
+        lines = [line for line in merged.lines if len(line)]
+        ends = _line_ends(lines)
+        table = StrokeEnds(*ends)
+    return lines, table, bool(_closed_all(lines, tolerance, *ends).any())
 
 
 def _collection(lines: list[np.ndarray]):

@@ -36,51 +36,64 @@ MARGIN = 1e-9
 from the ends the tree did not return, for the choice to stand without a closer look."""
 
 
+BLOCK = 1 << 16
+"""Ends whose neighbours :class:`StrokeEnds` looks up and orders at a time (its working memory)."""
+
+
 class StrokeEnds:
     """The ends of a layer's strokes (end ``2i``: stroke ``i``'s first point, ``2i + 1``: its last)
-    and the :data:`NEIGHBOURS` nearest ends of each, by one ``cKDTree`` query shared by every walk
-    over them, by :func:`_relocate` and by :meth:`meet`.  Flat arrays, read through ``memoryview`` in the walk: an
-    item of one is a Python number at a fraction of the cost of a NumPy scalar or of a ``tolist``."""
+    and the :data:`NEIGHBOURS` nearest ends of each, by one ``cKDTree`` over them shared by every
+    walk, by :func:`_relocate` and by :meth:`meet`, asked :data:`BLOCK` ends at a time.  Flat
+    arrays, read through ``memoryview`` in the walk: an item of one is a Python number at a
+    fraction of the cost of a NumPy scalar or of a ``tolist``."""
 
     def __init__(self, starts: np.ndarray, ends: np.ndarray):
         from scipy.spatial import cKDTree  # vpype's line index is built on it
 
         self.points = np.column_stack([starts, ends]).ravel()
         self.xy = np.column_stack([self.points.real, self.points.imag])
-        self.k = min(NEIGHBOURS, len(self.points))
-        dist, index = cKDTree(self.xy).query(self.xy, k=self.k) if len(self.points) else (np.zeros(0), np.zeros(0))
-        self.dist = np.ascontiguousarray(dist, dtype=float).reshape(-1)
-        self.index = np.ascontiguousarray(index, dtype=np.int32 if len(self.points) < 2**31 else np.intp).reshape(-1)
-        self.width = min(FIRST, self.k)
-        self.first = self._first()
+        count = len(self.points)
+        self.k, self.width = min(NEIGHBOURS, count), min(FIRST, NEIGHBOURS, count)
+        kind = np.int32 if count < 2**31 else np.intp
+        self.dist, self.index = np.empty((count, self.k)), np.empty((count, self.k), dtype=kind)
+        self.first = np.empty((count, self.width), dtype=kind)
+        self.apart = np.empty(count)  # by the tree, from each end to the nearest end of another stroke in its row
+        tree = cKDTree(self.xy) if count else None
+        for begin in range(0, count, BLOCK):
+            block = slice(begin, begin + BLOCK)
+            dist, index = tree.query(self.xy[block], k=self.k)
+            dist, index = dist.reshape(-1, self.k), index.reshape(-1, self.k)
+            self.dist[block], self.index[block] = dist, index
+            own = (index >> 1) == (np.arange(begin, begin + len(index)) >> 1)[:, None]
+            self.apart[block] = np.where(own, np.inf, dist).min(axis=1, initial=np.inf)
+            self.first[block] = self._first(begin, index, dist, own)
+        self.dist, self.index, self.first = self.dist.reshape(-1), self.index.reshape(-1), self.first.reshape(-1)
 
-    def _first(self) -> np.ndarray:
-        """For each end, the :data:`FIRST` nearest ends of other strokes in the walk's order of choice (by
-        ``dx*dx + dy*dy``, ties to the lowest end), each as far as its row shows it: -1 from the first
-        one that an end beyond the row might precede (by :data:`MARGIN`).  Leaving by that end, the
-        pen's next stroke is the first of them still undrawn, if no -1 comes before it: every end
-        nearer than that one is drawn (its own stroke's other end too)."""
-        count, k = len(self.points), self.k
-        rows, dist = self.index.reshape(count, k).astype(np.intp), self.dist.reshape(count, k)
-        dx, dy = self.xy[rows, 0] - self.xy[:, :1], self.xy[rows, 1] - self.xy[:, 1:]
-        key = np.where((rows >> 1) == (np.arange(count) >> 1)[:, None], np.inf, dx * dx + dy * dy)
-        seen = dist * (1 + MARGIN) + 1e-12 < dist[:, -1:] if k < count else np.isfinite(dist)
+    def _first(self, begin: int, rows: np.ndarray, dist: np.ndarray, own: np.ndarray) -> np.ndarray:
+        """For the ends from ``begin`` with neighbours ``rows`` (at tree distances ``dist``; ``own``:
+        the ends of their own strokes), the :data:`FIRST` nearest ends of other strokes in the
+        walk's order of choice (by ``dx*dx + dy*dy``, ties to the lowest end), each as far as its
+        row shows it: -1 from the first one that an end beyond the row might precede (by
+        :data:`MARGIN`).  Leaving by that end, the pen's next stroke is the first of them still
+        undrawn, if no -1 comes before it: every end nearer than that one is drawn (its own
+        stroke's other end too)."""
+        at = self.xy[begin:begin + len(rows)]
+        dx, dy = self.xy[rows, 0] - at[:, :1], self.xy[rows, 1] - at[:, 1:]
+        key = np.where(own, np.inf, dx * dx + dy * dy)
+        seen = dist * (1 + MARGIN) + 1e-12 < dist[:, -1:] if self.k < len(self.points) else np.isfinite(dist)
         chosen = np.lexsort((rows, key), axis=1)[:, :self.width]
         known = np.logical_and.accumulate(np.take_along_axis(seen & np.isfinite(key), chosen, axis=1), axis=1)
-        first = np.where(known, np.take_along_axis(rows, chosen, axis=1), -1)
-        return np.ascontiguousarray(first, dtype=self.index.dtype).reshape(-1)
+        return np.where(known, np.take_along_axis(rows, chosen, axis=1), -1)
 
     def meet(self, tolerance: float) -> bool:
         """Do ends of two different strokes lie within ``tolerance`` (or a rounding more)?  If two
         do, one of them is among the other's nearest ends, or so are two ends of other strokes
         as near (a stroke has two ends of its own)."""
-        count = len(self.points)
-        other = (self.index.reshape(count, self.k) >> 1) != (np.arange(count) >> 1)[:, None]
-        return bool(np.any(other & (self.dist.reshape(count, self.k) <= tolerance * (1 + MARGIN) + 1e-12)))
+        return bool(np.any(self.apart <= tolerance * (1 + MARGIN) + 1e-12))
 
-    def near_strokes(self) -> np.ndarray:
-        """For each end, the strokes of its nearest ends (a row of ``k`` each)."""
-        return self.index.reshape(len(self.points), self.k) >> 1
+    def near_strokes(self, end: int) -> list[int]:
+        """The strokes of the nearest ends of ``end``."""
+        return (self.index[end * self.k:(end + 1) * self.k] >> 1).tolist()
 
 
 def greedy_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[np.ndarray, np.ndarray]:
@@ -171,7 +184,6 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, table: StrokeEnds,
     """See :func:`nearest_order`: the strokes in a linked list (``head``: the pen), each moved once."""
     count = len(order)
     points = table.points
-    near = table.near_strokes()  # strokes with an end near each end
     x, y = points.real.tolist() + [pen.real], points.imag.tolist() + [pen.imag]
     head = count
     turned = np.zeros(count + 1, dtype=bool)
@@ -208,7 +220,7 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, table: StrokeEnds,
         if b >= 0:
             before[b] = a
         best = (gain, a, turned[stroke])
-        for other in set(near[2 * stroke].tolist() + near[2 * stroke + 1].tolist()) - {stroke}:
+        for other in set(table.near_strokes(2 * stroke) + table.near_strokes(2 * stroke + 1)) - {stroke}:
             for place in (other, before[other]):
                 if place < 0:
                     continue

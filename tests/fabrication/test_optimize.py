@@ -263,3 +263,20 @@ def test_ends_entries_and_reloop_of_a_whole_layer_are_those_of_each_line_on_its_
         relooped.append(line)
         at = line[-1]
     assert [line.tolist() for line in _reloop(lines, pen, 0.025, onward)] == [line.tolist() for line in relooped]
+
+
+def test_a_closed_outline_in_a_plan_starts_at_its_corner_nearest_the_pen():
+    """A layer with closed lines is relooped in the plan (a layer without any skips the work)."""
+    import vpype as vp
+
+    from foldfab.devices import Tool
+    from foldfab.fabrication.optimize import optimize_plan
+    from foldfab.fabrication.plan import Pass, PlotPlan
+
+    doc = vp.Document()
+    doc.add(vp.LineCollection([np.array([200 + 210j, 300 + 210j])]), 1)
+    doc.add(vp.LineCollection([SQUARE + 100 + 100j]), 2)  # from (300, 300), then on to (200, 210): its corner (200, 200)
+    tool = Tool(1, None, 10.0)
+    steps = [Pass(2, "cut", tool), Pass(1, "valley", tool)]
+    plan = optimize_plan(PlotPlan(doc, steps, (400.0, 400.0)), "greedy", 0.025, 300 + 300j)
+    assert plan.document.layers[2].lines[0][0] == 200 + 200j

@@ -68,15 +68,17 @@ def strokes_of(raw, step) -> tuple[np.ndarray, np.ndarray]:
 
 @settings(max_examples=200, deadline=None)
 @given(raw=st.lists(stroke, max_size=80), step=grid, pen=st.tuples(coordinate, coordinate),
-       neighbours=st.sampled_from([2, 3, 16]), first=st.sampled_from([0, 1, 4]))
-def test_the_greedy_walk_is_exactly_the_plain_one(raw, step, pen, neighbours, first):
+       neighbours=st.sampled_from([2, 3, 16]), first=st.sampled_from([0, 1, 4]), block=st.sampled_from([5, 1 << 16]))
+def test_the_greedy_walk_is_exactly_the_plain_one(raw, step, pen, neighbours, first, block):
     """Few neighbours per end make the walk fall back on its second tree (and rebuild it) often;
-    few or no ends kept in order of choice, on the rest of each end's row."""
+    few or no ends kept in order of choice, on the rest of each end's row; small blocks, many
+    lookups of the neighbours."""
     starts, ends = strokes_of(raw, step)
     pen = complex(*pen) * step
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(sort, "NEIGHBOURS", neighbours)
         patch.setattr(sort, "FIRST", first)
+        patch.setattr(sort, "BLOCK", block)
         order, flipped = greedy_order(starts, ends, pen)
     expected = reference(starts, ends, pen)
     assert (order.tolist(), flipped.tolist()) == expected
@@ -114,8 +116,8 @@ def test_orders_from_several_pens_share_one_neighbour_query_and_are_each_the_ord
 
 @settings(max_examples=150, deadline=None)
 @given(raw=st.lists(stroke, max_size=60), step=grid, reach=st.sampled_from([0.3, 1.2, 2.5]),
-       neighbours=st.sampled_from([3, 16]))
-def test_ends_meet_where_two_strokes_have_ends_within_the_tolerance(raw, step, reach, neighbours):
+       neighbours=st.sampled_from([3, 16]), block=st.sampled_from([5, 1 << 16]))
+def test_ends_meet_where_two_strokes_have_ends_within_the_tolerance(raw, step, reach, neighbours, block):
     """The layer's neighbour table answers whether vpype's ``linemerge`` has anything to join, as
     comparing every two ends would (the tolerances fall between the grid's distances)."""
     starts, ends = strokes_of(raw, step)
@@ -124,6 +126,7 @@ def test_ends_meet_where_two_strokes_have_ends_within_the_tolerance(raw, step, r
     other = (np.arange(len(points))[:, None] >> 1) != (np.arange(len(points))[None, :] >> 1)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(sort, "NEIGHBOURS", neighbours)
+        patch.setattr(sort, "BLOCK", block)
         table = StrokeEnds(starts, ends)
     assert table.meet(reach * step) == bool(np.any(other & (apart <= reach * step)))
 
