@@ -5,9 +5,11 @@ From where the pen is, draw next the stroke with an end nearest to it, entering 
 without its cost.  vpype asks its KD-tree for 100 neighbours of the pen twice per stroke
 through scipy's Python wrapper (15 µs apiece) and rebuilds it over every remaining line
 whenever the pen's neighbourhood runs dry; on the 100,000 strokes of a 12.6 m roll that was
-two thirds of an export.  Here one ``cKDTree.query`` call finds the :data:`NEIGHBOURS` nearest
-ends of every stroke end at once, in C; the walk then takes the first of the pen's neighbours
-still undrawn (drawn ones are skipped, never deleted).  Only when all of them are drawn does it
+two thirds of an export.  Here ``cKDTree.query`` finds the :data:`NEIGHBOURS` nearest ends of
+every stroke end at once, in C, once per layer (:class:`StrokeEnds`, shared by the walks from the
+pen and from the goal and by the moves of stragglers); the walk then takes the first of the
+pen's neighbours still undrawn (drawn ones are skipped, never deleted), most often from a few
+kept in its exact order of choice.  Only when all of them are drawn does it
 ask a second tree, over the ends still undrawn when it was built, rebuilt once half of those
 are drawn.
 
