@@ -66,7 +66,7 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
         lines = plan.document.layers[step.layer_id]
         if ("lines", index) not in cache:
             cache["lines", index] = _merged(lines.lines, resolution)
-        result, table, loops = cache["lines", index]
+        result, loops = cache["lines", index][0::2]
         onward = _onward(meets[index + 1:], start, resolution)
         orders = []
         if 1 < len(result) <= TWO_OPT_LINES:
@@ -75,8 +75,9 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
             orders.append(cache["theirs", index, pen])
         if mixed or not orders:
             if ("ours", index, pen) not in cache:
-                cache["ours", index, pen] = _ours(result, two_opt, pen, onward.goal(), table)
+                cache["ours", index, pen] = _ours(result, two_opt, pen, onward.goal(), cache["lines", index][1])
             orders[:0] = cache["ours", index, pen]
+        cache["lines", index] = result, None, loops  # a million strokes' table is 200 MB: one layer's at a time
         # A sorted order backwards (each line reversed) has the same inner travel: take the
         # order and direction that arrive and leave by less.
         candidates = [_end_towards(_reloop(order, pen, resolution, onward) if loops else order, pen, onward)
