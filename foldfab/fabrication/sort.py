@@ -107,10 +107,11 @@ def greedy_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[np
 
 
 def _greedy(table: StrokeEnds, pen: complex) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`greedy_order` over ``table``.  From a stroke's end, the pen's neighbours are that end's
-    row of the table: the first undrawn one is taken unless another undrawn one ties with it
-    within :data:`MARGIN` (then the exact nearest of those) or the row ends before the tie does;
-    otherwise :class:`_Walk` searches the undrawn ends."""
+    """:func:`greedy_order` over ``table``.  Leaving a stroke by an end, the pen takes the first still
+    undrawn of that end's first ends in order (``table.first``) unless a -1 comes before it; else
+    the first undrawn one of the end's row of neighbours unless another undrawn one ties with
+    it within :data:`MARGIN` (then the exact nearest of those) or the row ends before the tie
+    does; otherwise :class:`_Walk` searches the undrawn ends."""
     count = len(table.points) // 2
     walk = _Walk(table.xy)
     undrawn, k, total = walk.undrawn, table.k, len(table.points)
