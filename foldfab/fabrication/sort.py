@@ -60,7 +60,7 @@ class StrokeEnds:
         self.dist, self.index = np.empty((count, self.k)), np.empty((count, self.k), dtype=kind)
         self.first = np.empty((count, self.width), dtype=kind)
         self.apart = np.empty(count)  # by the tree, from each end to the nearest end of another stroke in its row
-        tree = cKDTree(self.xy) if count else None
+        self.tree = tree = cKDTree(self.xy) if count else None  # the walks' first second tree too
         for begin in range(0, count, BLOCK):
             block = slice(begin, begin + BLOCK)
             dist, index = tree.query(self.xy[block], k=self.k)
@@ -113,7 +113,7 @@ def _greedy(table: StrokeEnds, pen: complex) -> tuple[np.ndarray, np.ndarray]:
     it within :data:`MARGIN` (then the exact nearest of those) or the row ends before the tie
     does; otherwise :class:`_Walk` searches the undrawn ends."""
     count = len(table.points) // 2
-    walk = _Walk(table.xy)
+    walk = _Walk(table)
     undrawn, k, total = walk.undrawn, table.k, len(table.points)
     dist, index, first, width = memoryview(table.dist), memoryview(table.index), memoryview(table.first), table.width
     x, y = memoryview(walk.x), memoryview(walk.y)
@@ -250,19 +250,19 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, table: StrokeEnds,
 class _Walk:
     """The undrawn strokes (by stroke), and the nearest undrawn end to a point by a second tree."""
 
-    def __init__(self, xy: np.ndarray):
-        self.xy = xy
+    def __init__(self, table: StrokeEnds):
+        self.xy = xy = table.xy
         self.x, self.y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
         self.undrawn = bytearray(b"\x01") * (len(xy) // 2)
-        self.tree = None  # over the ends undrawn when it was built: ``self.ids``
-        self.ids = np.zeros(0, dtype=np.intp)
+        self.tree = table.tree  # over the ends undrawn when it was built: ``self.ids`` (first: the table's, all)
+        self.ids = np.arange(len(xy))
 
     def nearest(self, pen: complex, left: int) -> int:
         """The nearest undrawn end to ``pen`` (of ``left`` undrawn ends) by the second tree, asked for
         twice as many ends until it answers."""
         from scipy.spatial import cKDTree
 
-        if self.tree is None or 2 * left < len(self.ids):
+        if 2 * left < len(self.ids):
             alive = np.repeat(np.frombuffer(bytes(self.undrawn), dtype=np.uint8).astype(bool), 2)
             self.ids = np.flatnonzero(alive)
             self.tree = cKDTree(self.xy[self.ids])
