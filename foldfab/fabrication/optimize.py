@@ -64,12 +64,9 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
             pen = start
             continue
         lines = plan.document.layers[step.layer_id]
-        result = lines.lines
-        if _ends_meet(lines, resolution):
-            merged = _collection(result)
-            merged.merge(tolerance=resolution, flip=True)
-            result = merged.lines
-        result = [line for line in result if len(line)]
+        if ("lines", index) not in cache:
+            cache["lines", index] = _merged(lines.lines, resolution)
+        result, loops = cache["lines", index][0::2]
         onward = _onward(meets[index + 1:], start, resolution)
         orders = []
         if 1 < len(result) <= TWO_OPT_LINES:
@@ -78,11 +75,12 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
             orders.append(cache["theirs", index, pen])
         if mixed or not orders:
             if ("ours", index, pen) not in cache:
-                cache["ours", index, pen] = _ours(result, two_opt, pen, onward.goal())
+                cache["ours", index, pen] = _ours(result, two_opt, pen, onward.goal(), cache["lines", index][1])
             orders[:0] = cache["ours", index, pen]
+        cache["lines", index] = result, None, loops  # a million strokes' table is 200 MB: one layer's at a time
         # A sorted order backwards (each line reversed) has the same inner travel: take the
         # order and direction that arrive and leave by less.
-        candidates = [_end_towards(_reloop(order, pen, resolution, onward), pen, onward)
+        candidates = [_end_towards(_reloop(order, pen, resolution, onward) if loops else order, pen, onward)
                       for ordered in orders for order in (ordered, [line[::-1] for line in ordered[::-1]])]
         result = min(candidates, key=lambda c: _entry_exit(c, pen, onward))
         if step.name not in keep_vertices:  # last: simplifying keeps the ends of every line
@@ -94,17 +92,24 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
     return PlotPlan(doc, list(plan.steps), plan.sheet)
 
 
-def _ends_meet(lines, tolerance: float) -> bool:
-    """Do ends of two different lines lie within ``tolerance``?  If not, vpype's ``linemerge``
-    would merge nothing (scoring already chained every join at a shared vertex), and on a
-    layer of 50,000 lines it takes seconds to find that out."""
-    from scipy.spatial import cKDTree  # vpype's line index is built on it
+def _merged(lines: list[np.ndarray], tolerance: float):
+    """``lines`` joined where their ends meet (vpype's ``linemerge``), the table of their ends
+    (:class:`foldfab.fabrication.sort.StrokeEnds`, for the sort) and whether any is closed
+    (:func:`_reloop` has work).  vpype is asked only when ends of
+    two lines lie within ``tolerance``: scoring has chained every join at a shared vertex already,
+    and on a layer of 50,000 lines vpype takes seconds to find nothing to merge."""
+    from foldfab.fabrication.sort import StrokeEnds
 
-    if len(lines) < 2:
-        return False
-    ends = np.array([(line[0], line[-1]) for line in lines]).ravel()
-    pairs = cKDTree(np.column_stack([ends.real, ends.imag])).query_pairs(tolerance, output_type="ndarray")
-    return bool(np.any(pairs[:, 0] // 2 != pairs[:, 1] // 2))
+    lines = [line for line in lines if len(line)]
+    ends = _line_ends(lines)
+    table = StrokeEnds(*ends)
+    if table.meet(tolerance):
+        merged = _collection(lines)
+        merged.merge(tolerance=tolerance, flip=True)
+        lines = [line for line in merged.lines if len(line)]
+        ends = _line_ends(lines)
+        table = StrokeEnds(*ends)
+    return lines, table, bool(_closed_all(lines, tolerance, *ends).any())
 
 
 def _collection(lines: list[np.ndarray]):
@@ -127,7 +132,8 @@ def _vpype_operation(name: str):
     return getattr(operations, name).callback.__wrapped__
 
 
-def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | None) -> list[list[np.ndarray]]:
+def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | None,
+          table=None) -> list[list[np.ndarray]]:
     """foldfab's orders of ``lines`` from ``pen``, each line either way round: the greedy
     nearest-end order over the whole layer with its stragglers moved
     (:func:`foldfab.fabrication.sort.nearest_order`), and when the pen should end near ``goal``
@@ -135,13 +141,13 @@ def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | 
     from ``goal`` backwards; each, with ``two_opt``, improved window by window (:func:`_two_opt`).
     A greedy walk depends much on where it starts: the roll's mountains, entered where its
     valleys end, end 12 m from the park position; walked from there and drawn backwards,
-    they end beside it."""
-    from foldfab.fabrication.sort import nearest_order
+    they end beside it.  ``table``: the ends of ``lines`` (:class:`foldfab.fabrication.sort.StrokeEnds`)
+    when already found."""
+    from foldfab.fabrication.sort import StrokeEnds, nearest_orders
 
-    starts, ends = np.array([line[0] for line in lines]), np.array([line[-1] for line in lines])
+    begins = [pen] if goal is None or len(lines) < 2 else [pen, goal]
     ours = []
-    for begin in [pen] if goal is None or len(lines) < 2 else [pen, goal]:
-        order, flipped = nearest_order(starts, ends, begin)
+    for begin, (order, flipped) in zip(begins, nearest_orders(table or StrokeEnds(*_line_ends(lines)), begins)):
         ordered = [lines[i][::-1] if turn else lines[i] for i, turn in zip(order.tolist(), flipped.tolist())]
         if begin is not pen:
             ordered = [line[::-1] for line in ordered[::-1]]
@@ -189,8 +195,7 @@ def _two_opt(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
 
 def _nearest_first(lines: list[np.ndarray], pen: complex) -> list[np.ndarray]:
     """``lines`` with the one whose end is nearest ``pen`` moved first (and turned to start there)."""
-    starts = np.array([line[0] for line in lines])
-    ends = np.array([line[-1] for line in lines])
+    starts, ends = _line_ends(lines)
     dist = np.minimum(np.abs(starts - pen), np.abs(ends - pen))
     i = int(np.argmin(dist))
     first = lines[i] if abs(starts[i] - pen) <= abs(ends[i] - pen) else lines[i][::-1]
@@ -247,7 +252,11 @@ def _kept_whole(lines: list[np.ndarray], tolerance: float) -> np.ndarray:
 def _entries(lines, tolerance: float) -> np.ndarray:
     """Where the pen can begin drawing ``lines``: the ends of open lines, any vertex of a
     closed one (it is relooped to start there)."""
-    return np.concatenate([line if _closed(line, tolerance) else line[[0, -1]] for line in lines])
+    starts, ends = _line_ends(lines)
+    closed = _closed_all(lines, tolerance, starts, ends)
+    if not closed.any():
+        return np.column_stack([starts, ends]).ravel()
+    return np.concatenate([line if shut else line[[0, -1]] for line, shut in zip(lines, closed.tolist())])
 
 
 class _Onward:
@@ -292,7 +301,7 @@ def _onward(later: list, park: complex, tolerance: float) -> _Onward:
             loop = lines[0][:-1]
             onward = _Onward(loop, onward.costs(loop))
         else:
-            onward = _Onward(_entries(layer, tolerance))
+            onward = _Onward(_entries(lines, tolerance))
     return onward
 
 
@@ -301,13 +310,28 @@ def _closed(line: np.ndarray, tolerance: float) -> bool:
     return len(line) > 3 and abs(line[0] - line[-1]) <= tolerance
 
 
+def _closed_all(lines: list[np.ndarray], tolerance: float, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """:func:`_closed` of each of ``lines`` (first points ``starts``, last ``ends``) at once."""
+    sizes = np.fromiter(map(len, lines), dtype=np.intp, count=len(lines))
+    return (sizes > 3) & (np.abs(starts - ends) <= tolerance)
+
+
+def _line_ends(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The first and the last points of ``lines`` (at least one point each), as two arrays: through
+    one concatenation, since indexing 50,000 lines one by one costs more than copying them."""
+    if not len(lines):
+        return np.zeros(0, dtype=complex), np.zeros(0, dtype=complex)
+    stops = np.cumsum(np.fromiter(map(len, lines), dtype=np.intp, count=len(lines)))
+    points = np.concatenate(lines)
+    return points[np.append(0, stops[:-1])], points[stops - 1]
+
+
 def _entry_exit(lines: list[np.ndarray], pen: complex, onward: _Onward | None) -> float:
     """Travel from ``pen`` into ``lines``, inside them (reloop and the last line's turn change
     it) and from their end on (``onward``; None: nowhere)."""
     if not lines:
         return 0.0
-    starts = np.array([line[0] for line in lines])
-    ends = np.array([line[-1] for line in lines])
+    starts, ends = _line_ends(lines)
     inside = float(np.abs(starts[1:] - ends[:-1]).sum())
     return abs(starts[0] - pen) + inside + (0.0 if onward is None else onward.cost(ends[-1]))
 
@@ -329,15 +353,16 @@ def _reloop(lines: list[np.ndarray], pen: complex, tolerance: float, onward: _On
     last line, if closed, where coming in and going on (``onward``) add up to least."""
     import vpype as vp
 
-    out = []
-    for index, line in enumerate(lines):
-        if _closed(line, tolerance):
-            cost = np.abs(line[:-1] - pen)
-            if index == len(lines) - 1:
-                cost += onward.costs(line[:-1])
-            line = vp.reloop(line, int(np.argmin(cost)))
-        out.append(line)
-        pen = line[-1]
+    closed = np.flatnonzero(_closed_all(lines, tolerance, *_line_ends(lines)))
+    if not len(closed):
+        return lines
+    out = list(lines)
+    for index in closed.tolist():
+        line = lines[index]
+        cost = np.abs(line[:-1] - (out[index - 1][-1] if index else pen))
+        if index == len(lines) - 1:
+            cost += onward.costs(line[:-1])
+        out[index] = vp.reloop(line, int(np.argmin(cost)))
     return out
 
 

@@ -5,9 +5,11 @@ From where the pen is, draw next the stroke with an end nearest to it, entering 
 without its cost.  vpype asks its KD-tree for 100 neighbours of the pen twice per stroke
 through scipy's Python wrapper (15 µs apiece) and rebuilds it over every remaining line
 whenever the pen's neighbourhood runs dry; on the 100,000 strokes of a 12.6 m roll that was
-two thirds of an export.  Here one ``cKDTree.query`` call finds the :data:`NEIGHBOURS` nearest
-ends of every stroke end at once, in C; the walk then takes the first of the pen's neighbours
-still undrawn (drawn ones are skipped, never deleted).  Only when all of them are drawn does it
+two thirds of an export.  Here ``cKDTree.query`` finds the :data:`NEIGHBOURS` nearest ends of
+every stroke end at once, in C, once per layer (:class:`StrokeEnds`, shared by the walks from the
+pen and from the goal and by the moves of stragglers); the walk then takes the first of the
+pen's neighbours still undrawn (drawn ones are skipped, never deleted), most often from a few
+kept in its exact order of choice.  Only when all of them are drawn does it
 ask a second tree, over the ends still undrawn when it was built, rebuilt once half of those
 are drawn.
 
@@ -26,11 +28,74 @@ import math
 import numpy as np
 
 NEIGHBOURS = 16
-"""Nearest ends looked up for every stroke end at once."""
+"""Nearest ends looked up for every stroke end at once (at least 3: :meth:`StrokeEnds.meet`)."""
+
+FIRST = 4
+"""Nearest other ends of each end kept in the exact order of the walk's choice (:class:`StrokeEnds`)."""
 
 MARGIN = 1e-9
 """Relative margin by which the tree's distances (rounded differently) must separate a candidate
 from the ends the tree did not return, for the choice to stand without a closer look."""
+
+
+BLOCK = 1 << 16
+"""Ends whose neighbours :class:`StrokeEnds` looks up and orders at a time (its working memory)."""
+
+
+class StrokeEnds:
+    """The ends of a layer's strokes (end ``2i``: stroke ``i``'s first point, ``2i + 1``: its last)
+    and the :data:`NEIGHBOURS` nearest ends of each, by one ``cKDTree`` over them shared by every
+    walk, by :func:`_relocate` and by :meth:`meet`, asked :data:`BLOCK` ends at a time.  Flat
+    arrays, read through ``memoryview`` in the walk: an item of one is a Python number at a
+    fraction of the cost of a NumPy scalar or of a ``tolist``."""
+
+    def __init__(self, starts: np.ndarray, ends: np.ndarray):
+        from scipy.spatial import cKDTree  # vpype's line index is built on it
+
+        self.points = np.column_stack([starts, ends]).ravel()
+        self.xy = np.column_stack([self.points.real, self.points.imag])
+        count = len(self.points)
+        self.k, self.width = min(NEIGHBOURS, count), min(FIRST, NEIGHBOURS, count)
+        kind = np.int32 if count < 2**31 else np.intp
+        self.dist, self.index = np.empty((count, self.k)), np.empty((count, self.k), dtype=kind)
+        self.first = np.empty((count, self.width), dtype=kind)
+        self.apart = np.empty(count)  # by the tree, from each end to the nearest end of another stroke in its row
+        self.tree = tree = cKDTree(self.xy) if count else None  # the walks' first second tree too
+        for begin in range(0, count, BLOCK):
+            block = slice(begin, begin + BLOCK)
+            dist, index = tree.query(self.xy[block], k=self.k)
+            dist, index = dist.reshape(-1, self.k), index.reshape(-1, self.k)
+            self.dist[block], self.index[block] = dist, index
+            own = (index >> 1) == (np.arange(begin, begin + len(index)) >> 1)[:, None]
+            self.apart[block] = np.where(own, np.inf, dist).min(axis=1, initial=np.inf)
+            self.first[block] = self._first(begin, index, dist, own)
+        self.dist, self.index, self.first = self.dist.reshape(-1), self.index.reshape(-1), self.first.reshape(-1)
+
+    def _first(self, begin: int, rows: np.ndarray, dist: np.ndarray, own: np.ndarray) -> np.ndarray:
+        """For the ends from ``begin`` with neighbours ``rows`` (at tree distances ``dist``; ``own``:
+        the ends of their own strokes), the :data:`FIRST` nearest ends of other strokes in the
+        walk's order of choice (by ``dx*dx + dy*dy``, ties to the lowest end), each as far as its
+        row shows it: -1 from the first one that an end beyond the row might precede (by
+        :data:`MARGIN`).  Leaving by that end, the pen's next stroke is the first of them still
+        undrawn, if no -1 comes before it: every end nearer than that one is drawn (its own
+        stroke's other end too)."""
+        at = self.xy[begin:begin + len(rows)]
+        dx, dy = self.xy[rows, 0] - at[:, :1], self.xy[rows, 1] - at[:, 1:]
+        key = np.where(own, np.inf, dx * dx + dy * dy)
+        seen = dist * (1 + MARGIN) + 1e-12 < dist[:, -1:] if self.k < len(self.points) else np.isfinite(dist)
+        chosen = np.lexsort((rows, key), axis=1)[:, :self.width]
+        known = np.logical_and.accumulate(np.take_along_axis(seen & np.isfinite(key), chosen, axis=1), axis=1)
+        return np.where(known, np.take_along_axis(rows, chosen, axis=1), -1)
+
+    def meet(self, tolerance: float) -> bool:
+        """Do ends of two different strokes lie within ``tolerance`` (or a rounding more)?  If two
+        do, one of them is among the other's nearest ends, or so are two ends of other strokes
+        as near (a stroke has two ends of its own)."""
+        return bool(np.any(self.apart <= tolerance * (1 + MARGIN) + 1e-12))
+
+    def near_strokes(self, end: int) -> list[int]:
+        """The strokes of the nearest ends of ``end``."""
+        return (self.index[end * self.k:(end + 1) * self.k] >> 1).tolist()
 
 
 def greedy_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[np.ndarray, np.ndarray]:
@@ -38,27 +103,61 @@ def greedy_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[np
 
     Returns the stroke indices in drawing order and, for each of them, whether it is drawn
     reversed (entered at its last point)."""
-    from scipy.spatial import cKDTree  # vpype's line index is built on it
+    return _greedy(StrokeEnds(starts, ends), pen)
 
-    count = len(starts)
-    if count == 0:
-        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=bool)
-    points = np.column_stack([starts, ends]).ravel()  # end 2i: stroke i's first point, 2i + 1: its last
-    xy = np.column_stack([points.real, points.imag])
-    k = min(NEIGHBOURS, len(points))
-    near_d, near_i = cKDTree(xy).query(xy, k=k)
-    walk = _Walk(xy, near_d.reshape(len(points), k), near_i.reshape(len(points), k))
-    order = np.empty(count, dtype=np.intp)
-    flipped = np.empty(count, dtype=bool)
-    at = None  # the end the pen left by (None: the pen is not on a stroke end)
+
+def _greedy(table: StrokeEnds, pen: complex) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`greedy_order` over ``table``.  Leaving a stroke by an end, the pen takes the first still
+    undrawn of that end's first ends in order (``table.first``) unless a -1 comes before it; else
+    the first undrawn one of the end's row of neighbours unless another undrawn one ties with
+    it within :data:`MARGIN` (then the exact nearest of those) or the row ends before the tie
+    does; otherwise :class:`_Walk` searches the undrawn ends."""
+    count = len(table.points) // 2
+    walk = _Walk(table)
+    undrawn, k, total = walk.undrawn, table.k, len(table.points)
+    dist, index, first, width = memoryview(table.dist), memoryview(table.index), memoryview(table.first), table.width
+    x, y = memoryview(walk.x), memoryview(walk.y)
+    entries = []
+    at = -1  # the end the pen left by (-1: the pen is not on a stroke end)
     for step in range(count):
-        entry = walk.nearest(at, pen)
-        stroke = entry >> 1
-        walk.draw(stroke)
-        order[step], flipped[step] = stroke, entry & 1
+        entry = -1
+        if at >= 0:
+            j = at * width
+            stop = j + width
+            while j < stop:
+                entry = first[j]
+                if entry < 0 or undrawn[entry >> 1]:
+                    break
+                j += 1
+            else:
+                entry = -1
+        if entry < 0 and at >= 0:
+            j = at * k
+            stop = j + k
+            while j < stop and not undrawn[index[j] >> 1]:
+                j += 1
+            if j < stop:
+                entry = index[j]
+                bound = dist[j] * (1 + MARGIN) + 1e-12
+                j += 1
+                if j == stop or dist[j] <= bound:  # a tie, or the row ends: the exact nearest of the tied
+                    px, py = x[at], y[at]
+                    dx, dy = x[entry] - px, y[entry] - py
+                    best = (dx * dx + dy * dy, entry)
+                    while j < stop and dist[j] <= bound:
+                        other = index[j]
+                        if undrawn[other >> 1]:
+                            dx, dy = x[other] - px, y[other] - py
+                            best = min(best, (dx * dx + dy * dy, other))
+                        j += 1
+                    entry = best[1] if j < stop or k == total else -1  # the tie may go on beyond the row
+        if entry < 0:
+            entry = walk.nearest(pen if at < 0 else complex(x[at], y[at]), total - 2 * step)
+        undrawn[entry >> 1] = 0
+        entries.append(entry)
         at = entry ^ 1
-        pen = points[at]
-    return order, flipped
+    entries = np.array(entries, dtype=np.intp)
+    return entries >> 1, (entries & 1).astype(bool)
 
 
 def nearest_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[np.ndarray, np.ndarray]:
@@ -71,31 +170,33 @@ def nearest_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[n
     first) is moved, either way round, between two strokes that have an end among its
     :data:`NEIGHBOURS` nearest ends, where that costs least, if that costs less than it saves:
     the result never travels more than the greedy walk."""
-    order, flipped = greedy_order(starts, ends, pen)
-    if len(order) < 3:
-        return order, flipped
-    return _relocate(order, flipped, starts, ends, pen)
+    return nearest_orders(StrokeEnds(starts, ends), [pen])[0]
 
 
-def _relocate(order: np.ndarray, flipped: np.ndarray, starts: np.ndarray, ends: np.ndarray,
+def nearest_orders(table: StrokeEnds, pens: list[complex]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`nearest_order` of the strokes of ``table`` from each of ``pens``."""
+    out = []
+    for pen in pens:
+        order, flipped = _greedy(table, pen)
+        out.append((order, flipped) if len(order) < 3 else _relocate(order, flipped, table, pen))
+    return out
+
+
+def _relocate(order: np.ndarray, flipped: np.ndarray, table: StrokeEnds,
               pen: complex) -> tuple[np.ndarray, np.ndarray]:
     """See :func:`nearest_order`: the strokes in a linked list (``head``: the pen), each moved once."""
-    from scipy.spatial import cKDTree
-
     count = len(order)
-    points = np.column_stack([starts, ends]).ravel()
-    xy = np.column_stack([points.real, points.imag])
-    near = cKDTree(xy).query(xy, k=min(NEIGHBOURS, len(points)))[1] >> 1  # strokes with an end near each end
+    points = table.points
     x, y = points.real.tolist() + [pen.real], points.imag.tolist() + [pen.imag]
     head = count
     turned = np.zeros(count + 1, dtype=bool)
     turned[order] = flipped
     turned = turned.tolist()
-    after = [-1] * (count + 1)  # the next stroke (-1: none)
-    before = [-1] * (count + 1)
-    chain = [head, *order.tolist()]
-    for a, b in zip(chain, chain[1:]):
-        after[a], before[b] = b, a
+    chain = np.concatenate([[head], order])
+    after = np.full(count + 1, -1, dtype=np.intp)  # the next stroke (-1: none)
+    before = np.full(count + 1, -1, dtype=np.intp)
+    after[chain[:-1]], before[chain[1:]] = chain[1:], chain[:-1]
+    after, before = after.tolist(), before.tolist()
 
     def jump(a: int, b: int) -> float:  # from the end of stroke a (head: the pen) into stroke b
         if b < 0:
@@ -104,9 +205,12 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, starts: np.ndarray, ends: 
         into = 2 * b + turned[b]
         return math.hypot(x[out] - x[into], y[out] - y[into])
 
-    steps = np.array([jump(a, b) for a, b in zip(chain, chain[1:])])
+    into = 2 * order + flipped
+    left = np.concatenate([[pen], points[into[:-1] ^ 1]])  # where the pen is before each stroke
+    steps = np.hypot((points[into] - left).real, (points[into] - left).imag)
     saves = steps + np.append(steps[1:], 0)  # leaving: the jumps in and out (the bridge is subtracted below)
     mean = float(steps.mean())
+    order = order.tolist()
     for stroke in np.argsort(-saves, kind="stable").tolist():
         if saves[stroke] <= mean:
             break
@@ -119,7 +223,7 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, starts: np.ndarray, ends: 
         if b >= 0:
             before[b] = a
         best = (gain, a, turned[stroke])
-        for other in set(near[2 * stroke].tolist() + near[2 * stroke + 1].tolist()) - {stroke}:
+        for other in set(table.near_strokes(2 * stroke) + table.near_strokes(2 * stroke + 1)) - {stroke}:
             for place in (other, before[other]):
                 if place < 0:
                     continue
@@ -144,33 +248,21 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, starts: np.ndarray, ends: 
 
 
 class _Walk:
-    """The undrawn stroke ends, and the nearest of them to a point."""
+    """The undrawn strokes (by stroke), and the nearest undrawn end to a point by a second tree."""
 
-    def __init__(self, xy: np.ndarray, near_d: np.ndarray, near_i: np.ndarray):
-        self.xy, self.near_d, self.near_i = xy, near_d, near_i
-        self.x, self.y = xy[:, 0].tolist(), xy[:, 1].tolist()
-        self.undrawn = bytearray(b"\x01") * (len(xy) // 2)  # by stroke
-        self.left = len(xy)  # undrawn ends
-        self.tree = None  # over the ends undrawn when it was built: ``self.ids``
-        self.ids = np.zeros(0, dtype=np.intp)
+    def __init__(self, table: StrokeEnds):
+        self.xy = xy = table.xy
+        self.x, self.y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+        self.undrawn = bytearray(b"\x01") * (len(xy) // 2)
+        self.tree = table.tree  # over the ends undrawn when it was built: ``self.ids`` (first: the table's, all)
+        self.ids = np.arange(len(xy))
 
-    def draw(self, stroke: int) -> None:
-        self.undrawn[stroke] = 0
-        self.left -= 2
-
-    def nearest(self, at: int | None, pen: complex) -> int:
-        """The undrawn end nearest ``pen`` (which is end ``at``, when not None)."""
-        if at is not None:
-            found = self._pick(self.near_d[at].tolist(), self.near_i[at].tolist(), pen, len(self.xy))
-            if found is not None:
-                return found
-        return self._search(pen)
-
-    def _search(self, pen: complex) -> int:
-        """The nearest undrawn end by the second tree, asked for twice as many ends until it answers."""
+    def nearest(self, pen: complex, left: int) -> int:
+        """The nearest undrawn end to ``pen`` (of ``left`` undrawn ends) by the second tree, asked for
+        twice as many ends until it answers."""
         from scipy.spatial import cKDTree
 
-        if self.tree is None or 2 * self.left < len(self.ids):
+        if 2 * left < len(self.ids):
             alive = np.repeat(np.frombuffer(bytes(self.undrawn), dtype=np.uint8).astype(bool), 2)
             self.ids = np.flatnonzero(alive)
             self.tree = cKDTree(self.xy[self.ids])

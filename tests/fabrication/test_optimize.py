@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from foldfab.fabrication import optimize
 from foldfab.design import build_design
 from foldfab.job import parse_job
-from foldfab.fabrication.optimize import (KEPT_WHOLE_POINTS, _kept_whole, _Onward, _onward, _reloop, _simplify,
-                                         _ours, _theirs)
+from foldfab.fabrication.optimize import (KEPT_WHOLE_POINTS, _closed, _entries, _kept_whole, _line_ends, _Onward,
+                                         _onward, _ours, _reloop, _simplify, _theirs)
 from foldfab.fabrication.scoring import crease_lines
 
 
@@ -235,3 +235,48 @@ def test_the_last_layer_walked_back_from_the_park_position_travels_less():
         patch.setattr(_Onward, "goal", lambda self: None)
         forward_only = travel(optimize_plan(plan, "greedy", 0.025, park), park)["total"]
     assert walked_back < 0.9 * forward_only
+
+
+# lines of one to six points on a coarse grid, so that closed ones (first point within 0.025 of the last) are common
+grid_point = st.builds(complex, st.integers(-3, 3), st.integers(-3, 3))
+loose_line = st.lists(grid_point, min_size=1, max_size=6).map(lambda p: np.array(p, dtype=complex))
+
+
+@settings(max_examples=150, deadline=None)
+@given(lines=st.lists(loose_line, max_size=12), pen=grid_point, goal=grid_point)
+def test_ends_entries_and_reloop_of_a_whole_layer_are_those_of_each_line_on_its_own(lines, pen, goal):
+    """The layer-wide arrays give each line's ends, entries and new start exactly as the definition
+    line by line does: the ends of an open line, any vertex of a closed one, each closed line started
+    at the vertex nearest where the pen comes from (the last, nearest coming in plus going on)."""
+    import vpype as vp
+
+    starts, ends = _line_ends(lines)
+    assert starts.tolist() == [line[0] for line in lines] and ends.tolist() == [line[-1] for line in lines]
+    expected = [line if _closed(line, 0.025) else line[[0, -1]] for line in lines]
+    assert _entries(lines, 0.025).tolist() == (np.concatenate(expected).tolist() if lines else [])
+    onward = _Onward(np.array([goal]))
+    relooped, at = [], pen
+    for index, line in enumerate(lines):
+        if _closed(line, 0.025):
+            cost = np.abs(line[:-1] - at) + (onward.costs(line[:-1]) if index == len(lines) - 1 else 0)
+            line = vp.reloop(line, int(np.argmin(cost)))
+        relooped.append(line)
+        at = line[-1]
+    assert [line.tolist() for line in _reloop(lines, pen, 0.025, onward)] == [line.tolist() for line in relooped]
+
+
+def test_a_closed_outline_in_a_plan_starts_at_its_corner_nearest_the_pen():
+    """A layer with closed lines is relooped in the plan (a layer without any skips the work)."""
+    import vpype as vp
+
+    from foldfab.devices import Tool
+    from foldfab.fabrication.optimize import optimize_plan
+    from foldfab.fabrication.plan import Pass, PlotPlan
+
+    doc = vp.Document()
+    doc.add(vp.LineCollection([np.array([200 + 210j, 300 + 210j])]), 1)
+    doc.add(vp.LineCollection([SQUARE + 100 + 100j]), 2)  # from (300, 300), then on to (200, 210): its corner (200, 200)
+    tool = Tool(1, None, 10.0)
+    steps = [Pass(2, "cut", tool), Pass(1, "valley", tool)]
+    plan = optimize_plan(PlotPlan(doc, steps, (400.0, 400.0)), "greedy", 0.025, 300 + 300j)
+    assert plan.document.layers[2].lines[0][0] == 200 + 200j

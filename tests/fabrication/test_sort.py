@@ -19,7 +19,7 @@ from foldfab.fabrication import sort
 from foldfab.fabrication.layout import build_plan, park_position
 from foldfab.fabrication.optimize import travel
 from foldfab.fabrication.plan import PlotPlan
-from foldfab.fabrication.sort import greedy_order, nearest_order
+from foldfab.fabrication.sort import StrokeEnds, greedy_order, nearest_order, nearest_orders
 from foldfab.fabrication.spec import parse_fabrication
 
 
@@ -68,13 +68,17 @@ def strokes_of(raw, step) -> tuple[np.ndarray, np.ndarray]:
 
 @settings(max_examples=200, deadline=None)
 @given(raw=st.lists(stroke, max_size=80), step=grid, pen=st.tuples(coordinate, coordinate),
-       neighbours=st.sampled_from([2, 3, 16]))
-def test_the_greedy_walk_is_exactly_the_plain_one(raw, step, pen, neighbours):
-    """Few neighbours per end make the walk fall back on its second tree (and rebuild it) often."""
+       neighbours=st.sampled_from([2, 3, 16]), first=st.sampled_from([0, 1, 4]), block=st.sampled_from([5, 1 << 16]))
+def test_the_greedy_walk_is_exactly_the_plain_one(raw, step, pen, neighbours, first, block):
+    """Few neighbours per end make the walk fall back on its second tree (and rebuild it) often;
+    few or no ends kept in order of choice, on the rest of each end's row; small blocks, many
+    lookups of the neighbours."""
     starts, ends = strokes_of(raw, step)
     pen = complex(*pen) * step
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(sort, "NEIGHBOURS", neighbours)
+        patch.setattr(sort, "FIRST", first)
+        patch.setattr(sort, "BLOCK", block)
         order, flipped = greedy_order(starts, ends, pen)
     expected = reference(starts, ends, pen)
     assert (order.tolist(), flipped.tolist()) == expected
@@ -93,6 +97,38 @@ def test_the_order_draws_every_stroke_once_and_never_travels_more_than_the_greed
     assert np.array_equal(np.where(flipped, out, into), starts[order])
     assert np.array_equal(np.where(flipped, into, out), ends[order])
     assert pen_up(starts, ends, order, flipped, pen) <= pen_up(starts, ends, *reference(starts, ends, pen), pen) + 1e-9
+
+
+@settings(max_examples=100, deadline=None)
+@given(raw=st.lists(stroke, max_size=60), step=grid, pens=st.lists(st.tuples(coordinate, coordinate), min_size=1,
+                                                                     max_size=3))
+def test_orders_from_several_pens_share_one_neighbour_query_and_are_each_the_order_from_that_pen(raw, step, pens):
+    """The walks from the pen and from the goal share the layer's neighbour table: neither walk may
+    leave a mark on it that changes the other (each as if sorted alone)."""
+    starts, ends = strokes_of(raw, step)
+    pens = [complex(*pen) * step for pen in pens]
+    together = nearest_orders(StrokeEnds(starts, ends), pens)
+    assert len(together) == len(pens)
+    for pen, (order, flipped) in zip(pens, together):
+        alone = nearest_order(starts, ends, pen)
+        assert (order.tolist(), flipped.tolist()) == (alone[0].tolist(), alone[1].tolist())
+
+
+@settings(max_examples=150, deadline=None)
+@given(raw=st.lists(stroke, max_size=60), step=grid, reach=st.sampled_from([0.3, 1.2, 2.5]),
+       neighbours=st.sampled_from([3, 16]), block=st.sampled_from([5, 1 << 16]))
+def test_ends_meet_where_two_strokes_have_ends_within_the_tolerance(raw, step, reach, neighbours, block):
+    """The layer's neighbour table answers whether vpype's ``linemerge`` has anything to join, as
+    comparing every two ends would (the tolerances fall between the grid's distances)."""
+    starts, ends = strokes_of(raw, step)
+    points = np.column_stack([starts, ends]).ravel()
+    apart = np.abs(points[:, None] - points[None, :])
+    other = (np.arange(len(points))[:, None] >> 1) != (np.arange(len(points))[None, :] >> 1)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(sort, "NEIGHBOURS", neighbours)
+        patch.setattr(sort, "BLOCK", block)
+        table = StrokeEnds(starts, ends)
+    assert table.meet(reach * step) == bool(np.any(other & (apart <= reach * step)))
 
 
 def test_on_random_sets_moving_stragglers_travels_less():
