@@ -264,10 +264,8 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
     pending = before[done:] if stroke < len(strokes) else []  # nothing is left to draw after a pause
     pause_text = "" if not pending or program.protocol != "gcode" else "M0\n"
     head = preamble + pause_text
-    state = travel = ""  # the closing (every stroke drawn) lifts the tool and parks by itself
-    if stroke < len(strokes):
-        state = _tool_state(program, device, cut)
-        travel = _travel(device, strokes[stroke].points[0], program.protocol)
+    state, travel = ((_tool_state(program, device, cut), _travel(device, strokes[stroke].points[0], program.protocol))
+                     if stroke < len(strokes) else ("", ""))  # the closing lifts the tool and parks by itself
     # HP-GL and GP-GL select the tool, then move (as the writers do); G-code's travel is a G0, so
     # the motion mode and feed are restored after it.
     prelude = head + (state + travel if program.protocol != "gcode" else travel + state)
