@@ -38,10 +38,12 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
         return plan
     two_opt = method == "two-opt"
     steps = [step for _, step in device_steps(plan, tool_changer)]
-    cache: dict = {}  # each layer's sorts by pen: the second plan often starts a layer where the first did
+    again = any(isinstance(step, Pass) and 1 < len(plan.document.layers[step.layer_id]) <= TWO_OPT_LINES
+                for step in steps)
+    # each layer's sorts by pen, kept for the second plan (which often starts a layer where the first did)
+    cache: dict | None = {} if again else None
     best = _optimized(plan, steps, two_opt, resolution, start, keep_vertices, cache, mixed=True)
-    if not any(isinstance(step, Pass) and 1 < len(plan.document.layers[step.layer_id]) <= TWO_OPT_LINES
-               for step in steps):
+    if not again:
         return best
     # Layer by layer, the order that arrives and leaves by least may leave the next layer a worse
     # start (the star's valleys: 1 mm less, its mountains then 44 mm more): vpype's orders alone,
@@ -51,10 +53,13 @@ def optimize_plan(plan: PlotPlan, method: str, resolution: float, start: complex
 
 
 def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, start: complex,
-               keep_vertices: frozenset[str], cache: dict, mixed: bool) -> PlotPlan:
+               keep_vertices: frozenset[str], cache: dict | None, mixed: bool) -> PlotPlan:
     """:func:`optimize_plan` of ``plan`` as the device runs it (``steps``), each layer in the best of
     :func:`_ours` and, on a layer of at most :data:`TWO_OPT_LINES` lines, :func:`_theirs` (``mixed``
-    false: :func:`_theirs` alone there; ``cache`` keeps both by layer and pen, computed once)."""
+    false: :func:`_theirs` alone there; ``cache`` keeps both by layer and pen, computed once; None:
+    nothing is kept past its layer)."""
+    forget = cache is None
+    cache = {} if cache is None else cache
     doc = plan.document.clone()  # metadata only: layers are added below, in plan order
     pen = start
     # what the pen meets, in order: a layer to draw, or a pause (where the device parks it)
@@ -79,12 +84,15 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
             orders[:0] = cache["ours", index, pen]
         cache["lines", index] = result, None, loops  # a million strokes' table is 200 MB: one layer's at a time
         # A sorted order backwards (each line reversed) has the same inner travel: take the
-        # order and direction that arrive and leave by less.
-        candidates = [_end_towards(_reloop(order, pen, resolution, onward) if loops else order, pen, onward)
-                      for ordered in orders for order in (ordered, [line[::-1] for line in ordered[::-1]])]
+        # order and direction that arrive and leave by less (made one at a time: on a million
+        # strokes each candidate's list of lines is 100 MB).
+        candidates = (_end_towards(_reloop(order, pen, resolution, onward) if loops else order, pen, onward)
+                      for ordered in orders for order in (ordered, [line[::-1] for line in ordered[::-1]]))
         result = min(candidates, key=lambda c: _entry_exit(c, pen, onward))
         if step.name not in keep_vertices:  # last: simplifying keeps the ends of every line
             result = _simplify(result, resolution / 2)
+        if forget:
+            cache.clear()
         doc.add(result, step.layer_id)  # one pass over the lines: a LineCollection first would be two
         doc.layers[step.layer_id].metadata.update(lines.metadata)
         if result:
