@@ -18,7 +18,9 @@ STORE = {"sqlite3", "psycopg"}
 LINK = {"serial", "usb"}
 """A port to a plotter."""
 MESH, PDF = {"trimesh"}, {"reportlab"}
-PARSER_ONLY = PLOTTING | STORE | LINK | MESH | PDF | {"numpy", "secrets", "socket"}
+QUEUE = {"foldfab.queue.records", "foldfab.queue.snapshot", "foldfab.queue.store", "foldfab.plotting.progress"}
+"""The queue's records (dataclasses, a few milliseconds of start-up): the parser reads its limits only."""
+PARSER_ONLY = PLOTTING | STORE | LINK | MESH | PDF | QUEUE | {"numpy", "secrets", "socket"}
 """What reading the parser (``--help`` of any command) loads none of."""
 JOB = str(ROOT / "jobs" / "hexagon-fig8a.toml")
 DIAMOND = str(ROOT / "jobs" / "diamond-fig9.toml")
@@ -46,9 +48,9 @@ def test_help_reads_the_parser_only(argv, tmp_path):
 
 
 @pytest.mark.parametrize("argv, heavy", [
-    (["design", JOB], PLOTTING | STORE | LINK | MESH | PDF),
-    (["design", JOB, "--mesh", "{tmp}/h.glb"], PLOTTING - {"scipy", "shapely"} | STORE | LINK | PDF),
-    (["export", JOB, "--device", "hp7475a", "-o", "{tmp}/h.plt"], STORE | LINK | MESH | PDF),
+    (["design", JOB], PLOTTING | STORE | LINK | MESH | PDF | QUEUE),
+    (["design", JOB, "--mesh", "{tmp}/h.glb"], PLOTTING - {"scipy", "shapely"} | STORE | LINK | PDF | QUEUE),
+    (["export", JOB, "--device", "hp7475a", "-o", "{tmp}/h.plt"], STORE | LINK | MESH | PDF | QUEUE),
     (["preview", JOB, "--device", "hp7475a", "-o", "{tmp}/h.svg"], STORE | LINK | MESH | PDF),
     (["print", JOB, "-o", "{tmp}/h.pdf"], PLOTTING | STORE | LINK | MESH),
     (["plot", DIAMOND, "--device", "hp7475a", "--port", "sim://?time=instant", "--yes"], STORE | MESH | PDF),
