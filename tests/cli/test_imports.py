@@ -20,6 +20,10 @@ LINK = {"serial", "usb"}
 MESH, PDF = {"trimesh"}, {"reportlab"}
 QUEUE = {"foldfab.queue.records", "foldfab.queue.snapshot", "foldfab.queue.store", "foldfab.plotting.progress"}
 """The queue's records (dataclasses, a few milliseconds of start-up): the parser reads its limits only."""
+READ_BACK = {f"foldfab.programs.{name}" for name in ("machine", "read_hpgl", "read_gcode", "read_gpgl", "read_ebb")}
+"""The program readers: an export whose writer records what it draws (HP-GL, G-code) reads nothing back."""
+SPLIT = {"foldfab.geometry.split"}
+"""Splitting a design into pieces: only a job that asks for it."""
 PARSER_ONLY = PLOTTING | STORE | LINK | MESH | PDF | QUEUE | {"numpy", "secrets", "socket"}
 """What reading the parser (``--help`` of any command) loads none of."""
 JOB = str(ROOT / "jobs" / "hexagon-fig8a.toml")
@@ -50,7 +54,7 @@ def test_help_reads_the_parser_only(argv, tmp_path):
 @pytest.mark.parametrize("argv, heavy", [
     (["design", JOB], PLOTTING | STORE | LINK | MESH | PDF | QUEUE),
     (["design", JOB, "--mesh", "{tmp}/h.glb"], PLOTTING - {"scipy", "shapely"} | STORE | LINK | PDF | QUEUE),
-    (["export", JOB, "--device", "hp7475a", "-o", "{tmp}/h.plt"], STORE | LINK | MESH | PDF | QUEUE),
+    (["export", JOB, "--device", "hp7475a", "-o", "{tmp}/h.plt"], STORE | LINK | MESH | PDF | QUEUE | READ_BACK | SPLIT),
     (["preview", JOB, "--device", "hp7475a", "-o", "{tmp}/h.svg"], STORE | LINK | MESH | PDF),
     (["print", JOB, "-o", "{tmp}/h.pdf"], PLOTTING | STORE | LINK | MESH),
     (["plot", DIAMOND, "--device", "hp7475a", "--port", "sim://?time=instant", "--yes"], STORE | MESH | PDF),
