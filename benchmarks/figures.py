@@ -25,7 +25,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_fabrication import export_cases  # noqa: E402
-from bench_scale import measure  # noqa: E402
+from bench_scale import base_option, measure  # noqa: E402
 from warm_bytecode import cache_foldfab_bytecode  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -76,10 +76,5 @@ def main(rounds: int, base: Path | None, words: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    args = sys.argv[1:]
-    base = None
-    if "--base" in args:
-        at = args.index("--base")
-        base = Path(args[at + 1]).resolve()
-        del args[at:at + 2]
+    base, args = base_option(sys.argv[1:])
     main(int(next((a for a in args if a.isdigit()), 5)), base, [a for a in args if not a.isdigit()])
