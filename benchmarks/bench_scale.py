@@ -81,12 +81,15 @@ def main(rounds: int, base: Path | None, cases: list[str]) -> None:
                   f"| {peak:.0f} |")
 
 
+def base_option(args: list[str]) -> tuple[Path | None, list[str]]:
+    """The folder of ``--base FOLDER`` in ``args`` (None without it), and the other arguments."""
+    if "--base" not in args:
+        return None, args
+    at = args.index("--base")
+    return Path(args[at + 1]).resolve(), args[:at] + args[at + 2:]
+
+
 if __name__ == "__main__":
-    args = sys.argv[1:]
-    base = None
-    if "--base" in args:
-        at = args.index("--base")
-        base = Path(args[at + 1]).resolve()
-        del args[at:at + 2]
+    base, args = base_option(sys.argv[1:])
     chosen = [a for a in args if not a.isdigit()] or ["design --fold", "export (optimize none)", "export"]
     main(int(next((a for a in args if a.isdigit()), 3)), base, chosen)

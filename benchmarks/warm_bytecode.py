@@ -12,6 +12,7 @@ import compileall
 from pathlib import Path
 
 
-def cache_foldfab_bytecode() -> None:
-    """Compile foldfab's modules to ``__pycache__`` (py_compile writes whatever the environment says)."""
-    compileall.compile_dir(Path(__file__).resolve().parent.parent / "foldfab", quiet=1)
+def cache_foldfab_bytecode(root: Path = Path(__file__).resolve().parent.parent) -> None:
+    """Compile the modules of the foldfab in ``root`` (default this one) to ``__pycache__``
+    (py_compile writes whatever the environment says)."""
+    compileall.compile_dir(root / "foldfab", quiet=1)

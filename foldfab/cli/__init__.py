@@ -17,8 +17,15 @@ import sys
 from foldfab.cli import design, devices, plot, printing, profile, queue, sim, studio
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of every command."""
+GROUPS = {"design": design, "export": design, "preview": design, "devices": devices, "ports": devices, "plot": plot,
+          "print": printing, "profile": profile, "queue": queue, "sim": sim, "studio": studio}
+"""The module that adds each command to the parser (in the order ``foldfab --help`` lists them)."""
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser of every command; given ``command`` (a command's name, the first
+    argument), of that command's group alone: it parses that command's arguments as the whole
+    parser does, and building the other groups' parsers cost milliseconds of every start-up."""
     from foldfab import __version__
 
     parser = argparse.ArgumentParser(
@@ -28,14 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"foldfab {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
-    design.add_commands(sub)
-    devices.add_commands(sub)
-    plot.add_commands(sub)
-    printing.add_commands(sub)
-    profile.add_commands(sub)
-    queue.add_commands(sub)
-    sim.add_commands(sub)
-    studio.add_commands(sub)
+    for group in [GROUPS[command]] if command in GROUPS else dict.fromkeys(GROUPS.values()):
+        group.add_commands(sub)
     return parser
 
 
@@ -47,18 +48,35 @@ def run() -> int:
     a large job) only to free memory the process is handing back anyway.  ``gc.freeze``
     exempts them; every file foldfab writes is closed (and atomically renamed) before
     ``main`` returns, so no finalizer is waited for.
+
+    The cyclic collector is off while the parser is built, and stays off through a command
+    that builds one thing and exits (``collect=False`` in its parser's defaults: design,
+    export, preview, print).  Loading numpy, scipy, vpype and foldfab creates some hundred
+    thousand objects, none of them garbage, and the collector traverses them again and again
+    as they grow (about 30 ms of CPU of a paper-scale export, 6% of ``import vpype``;
+    Mercurial turns it off for bulk work likewise).  Reference counting still frees all
+    but cycles, and these commands make few (the 1,001,000-face ``design --fold`` and
+    export peak at the same memory either way).  A command that runs on (plotting, the
+    queue, the studio) collects as usual.
     """
     import gc
 
+    gc.disable()
     code = main()
     gc.freeze()
     return code
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Parse ``argv`` (default ``sys.argv``), run the command; the exit code."""
-    parser = build_parser()
+    """Parse ``argv`` (default ``sys.argv``), run the command; the exit code.  The cyclic
+    collector runs for every command but those parsed with ``collect=False`` (see :func:`run`)."""
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(argv[0] if argv else None)   # not a command name (--help, a typo): every command
     args = parser.parse_args(argv)
+    if getattr(args, "collect", True):
+        import gc
+
+        gc.enable()
     from foldfab.errors import FoldfabError
 
     try:

@@ -167,7 +167,7 @@ def add_commands(sub) -> None:
                         help="build a design whose faces intersect, with a warning instead of an error")
     _add_max_faces(design)
     design.add_argument("--json", action="store_true", help="print the summary as JSON")
-    design.set_defaults(func=cmd_design)
+    design.set_defaults(func=cmd_design, collect=False)   # builds one thing and exits (see cli.run)
 
     export = sub.add_parser("export", help="write the plotter program (HPGL or G-code) for a device",
                             description="Score and cut a design: write the program a plotter receives.")
@@ -176,10 +176,10 @@ def add_commands(sub) -> None:
                              "(report and estimate from the read-back; slower: foldfab plot always does it)")
     _add_fabrication_args(export, "program file (.hpgl/.plt for HPGL devices, .gcode/.nc for G-code, .ebb for EBB, "
                                   ".gpgl for GP-GL)")
-    export.set_defaults(func=cmd_export)
+    export.set_defaults(func=cmd_export, collect=False)   # builds one thing and exits (see cli.run)
 
     preview = sub.add_parser("preview", help="dry run: render what the plotter would do as SVG",
                              description="Read the program back and draw it: strokes per layer, travel, "
                                          "sheet, plottable area, pauses, and the time estimate.")
     _add_fabrication_args(preview, "preview SVG file")
-    preview.set_defaults(func=cmd_preview)
+    preview.set_defaults(func=cmd_preview, collect=False)   # builds one thing and exits (see cli.run)

@@ -93,4 +93,4 @@ def add_commands(sub) -> None:
     cmd.add_argument("--allow-penetration", action="store_true", help="print a design whose faces intersect")
     _add_max_faces(cmd)
     cmd.add_argument("--json", action="store_true", help="print the report as JSON")
-    cmd.set_defaults(func=cmd_print)
+    cmd.set_defaults(func=cmd_print, collect=False)   # builds one thing and exits (see cli.run)

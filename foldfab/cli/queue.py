@@ -367,9 +367,8 @@ def _port(text: str) -> str:
 
 def add_commands(sub) -> None:
     """``foldfab queue ...``: the persistent job queue."""
-    from foldfab.queue.records import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, MAX_COPIES, MAX_JOB_ID,
-                                       MIN_LEASE, PRIORITIES, STATES)
-    from foldfab.queue.store import DEFAULT_WAIT
+    from foldfab.queue.limits import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, DEFAULT_WAIT, LEASE_HEARTBEATS, MAX_COPIES,
+                                      MAX_JOB_ID, MIN_LEASE, PRIORITIES, STATES)
 
     job_id = _int_from(1, MAX_JOB_ID, "expected a job id")
     common = argparse.ArgumentParser(add_help=False)

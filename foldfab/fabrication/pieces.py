@@ -8,11 +8,14 @@ that every output (files, plans, programs, previews) handles a piece as it handl
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 from foldfab.design import Design
 from foldfab.errors import DesignError, FoldfabError
 from foldfab.fabrication.spec import FabricationSpec
-from foldfab.geometry.split import Piece, auto_cuts, split_pattern
+
+if TYPE_CHECKING:
+    from foldfab.geometry.split import Piece
 
 
 def design_pieces(design: Design, spec: FabricationSpec, sheet: tuple[float, float] | None = None,
@@ -24,6 +27,8 @@ def design_pieces(design: Design, spec: FabricationSpec, sheet: tuple[float, flo
     whole, or one scaled to fit ("fit"), is not split."""
     if not spec.split and not spec.split_height:
         return []
+    from foldfab.geometry.split import auto_cuts, split_pattern   # only here: most designs are not split
+
     job = design.job
     columns, rows = spec.split, list(spec.split_height)
     try:

@@ -14,25 +14,29 @@ draw is in :mod:`~foldfab.programs.machine`.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Iterator
+from typing import TYPE_CHECKING, Callable, Iterator
 
 from foldfab.errors import FoldfabError
 from foldfab.programs.drawing import Drawn, verify as verify_drawn
-from foldfab.programs.machine import Interpretation, Machine, from_interpretation
-from foldfab.programs.read_ebb import EbbMachine, ebb_commands
-from foldfab.programs.read_gcode import GcodeMachine
-from foldfab.programs.read_gpgl import GPGLMachine, GPGLTokenizer
-from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
 
 if TYPE_CHECKING:
     from foldfab.devices import DeviceProfile
+    from foldfab.programs.machine import Interpretation, Machine
     from foldfab.programs.program import Program
 
-MACHINES: dict[str, type[Machine]] = {"hpgl": HPGLMachine, "gcode": GcodeMachine, "ebb": EbbMachine,
-                                      "gpgl": GPGLMachine}
-"""The reader of each protocol (``DeviceProfile.protocol``)."""
-TOKENIZERS = {"hpgl": lambda: HPGLTokenizer(split_coordinates=True), "gpgl": GPGLTokenizer}
-"""The byte-stream tokenizers of the languages whose steps are commands (G-code's are lines)."""
+
+def readers() -> tuple[dict[str, type[Machine]], dict[str, Callable]]:
+    """The reader of each protocol (``DeviceProfile.protocol``), and the byte-stream tokenizers of the
+    languages whose steps are commands (G-code's are lines).  Imported when a program is first read:
+    an export whose writer recorded what it draws reads none, and the four readers are milliseconds
+    of its start-up."""
+    from foldfab.programs.read_ebb import EbbMachine
+    from foldfab.programs.read_gcode import GcodeMachine
+    from foldfab.programs.read_gpgl import GPGLMachine, GPGLTokenizer
+    from foldfab.programs.read_hpgl import HPGLMachine, HPGLTokenizer
+
+    return ({"hpgl": HPGLMachine, "gcode": GcodeMachine, "ebb": EbbMachine, "gpgl": GPGLMachine},
+            {"hpgl": lambda: HPGLTokenizer(split_coordinates=True), "gpgl": GPGLTokenizer})
 
 
 def interpret(program: Program | str, device: DeviceProfile,
@@ -49,7 +53,7 @@ def interpret(program: Program | str, device: DeviceProfile,
     if known is not None and known.protocol != device.protocol:
         raise FoldfabError(f"a {known.protocol} program cannot run on {device.name} "
                            f"({device.protocol})")
-    machine = MACHINES[device.protocol](device, frame, known)
+    machine = readers()[0][device.protocol](device, frame, known)
     machine.position = device.park_units  # where the last job left the pen, as the optimizer assumes
     return machine.run(text)
 
@@ -62,6 +66,8 @@ def drawn(program: Program, device: DeviceProfile, sheet: tuple[float, float] | 
     recorded = program.drawn(device.frame(sheet or device.sheet))
     if recorded is not None and not verify:
         return recorded
+    from foldfab.programs.machine import from_interpretation
+
     read = from_interpretation(interpret(program, device, sheet))
     if recorded is not None:
         verify_drawn(recorded, read, f"{program.protocol} program for {device.name}")
@@ -73,9 +79,10 @@ def pen_states(text: str, protocol: str, device: DeviceProfile) -> Iterator[tupl
     coordinate pair or instruction, a GP-GL command, a G-code line (at least one, even in an
     empty text).  The machine is the same object, updated in place."""
     frame = device.frame(device.sheet)
-    if protocol in TOKENIZERS:
-        machine = MACHINES[protocol](device, frame, None)
-        tokenizer = TOKENIZERS[protocol]()
+    machines, tokenizers = readers()
+    if protocol in tokenizers:
+        machine = machines[protocol](device, frame, None)
+        tokenizer = tokenizers[protocol]()
         commands = tokenizer.feed(text.encode("ascii")) + tokenizer.close()
         for command, end in zip(commands, [c.offset for c in commands[1:]] + [len(text)]):
             machine.at = command.offset
@@ -83,7 +90,9 @@ def pen_states(text: str, protocol: str, device: DeviceProfile) -> Iterator[tupl
             yield end, machine
         return
     if protocol == "ebb":
-        machine = EbbMachine(device, frame, None)
+        from foldfab.programs.read_ebb import ebb_commands
+
+        machine = machines[protocol](device, frame, None)
         end = 0
         for command, end in ebb_commands(text):
             machine.at = command.offset
@@ -92,7 +101,7 @@ def pen_states(text: str, protocol: str, device: DeviceProfile) -> Iterator[tupl
         if not end:
             yield len(text), machine
         return
-    machine = GcodeMachine(device, frame, None)
+    machine = machines["gcode"](device, frame, None)
     offset = 0
     for raw in text.split("\n"):
         end = min(offset + len(raw) + 1, len(text))

@@ -38,27 +38,10 @@ from dataclasses import dataclass
 
 from foldfab.errors import FoldfabError
 from foldfab.plotting.progress import done_share
+from foldfab.queue.limits import (ACTIVE, DEFAULT_HEARTBEAT, DEFAULT_LEASE, FINISHED, LEASE_HEARTBEATS,  # noqa: F401
+                                  MAX_COPIES, MAX_JOB_ID, MAX_PLOTTER_NAME, MIN_LEASE, PRIORITIES, RUNNABLE, STATES)
 from foldfab.queue.snapshot import Snapshot
 
-STATES = ("queued", "running", "waiting", "done", "failed", "cancelled", "interrupted")
-ACTIVE = ("running", "waiting")
-RUNNABLE = ("queued", "interrupted")
-FINISHED = ("done", "failed", "cancelled")
-DEFAULT_LEASE = 30.0
-DEFAULT_HEARTBEAT = 1.0
-"""Longest time between a worker's heartbeats (seconds)."""
-LEASE_HEARTBEATS = 5
-"""A lease lasts at least this many heartbeat intervals: one late heartbeat (a busy queue file,
-a slow disk) must not lose the job."""
-MIN_LEASE = LEASE_HEARTBEATS * DEFAULT_HEARTBEAT
-PRIORITIES = (-1000, 1000)
-"""Lowest and highest priority (the command line and the studio)."""
-MAX_COPIES = 1000
-"""Most sheets of one job a single ``add`` queues."""
-MAX_JOB_ID = 2 ** 63 - 1
-"""The largest job id: the largest 64-bit signed integer, SQLite's and PostgreSQL's ``bigint``."""
-MAX_PLOTTER_NAME = 200
-"""Longest plotter name (the default, ``host:port``, holds a ``/dev/serial/by-id/...`` path)."""
 
 
 @dataclass(frozen=True)
