@@ -43,6 +43,18 @@ if TYPE_CHECKING:
 MAX_LINE = 79  # characters before "\n": GRBL 1.1 holds 80 including the terminator
 
 
+def round_as_text(values: np.ndarray, decimals: int) -> np.ndarray:
+    """``values`` rounded to ``decimals`` places as ``"%.*f"`` writes them: correctly, from each
+    binary value.  ``np.round`` scales first, and the product can land on a tie the value itself
+    is above (0.0005 is written 0.001 but ``np.round`` gives 0.0), so near ties the text decides."""
+    scaled = values * 10.0 ** decimals
+    rounded = np.round(values, decimals)
+    near = np.abs(scaled - np.floor(scaled) - 0.5) < 1e-6
+    if near.any():
+        rounded[near] = [float("%.*f" % (decimals, v)) for v in values[near].tolist()]
+    return rounded
+
+
 def write_gcode(plan: PlotPlan, device: DeviceProfile, sink: Sink | None = None) -> Program:
     """The GRBL 1.1 program drawing ``plan`` on ``device``;
     ``sink``: see :class:`~foldfab.programs.program.ProgramBuilder` (the text streamed, not kept)."""
@@ -159,7 +171,7 @@ class _GcodeWriter:
         self.pen_up()
         park = np.asarray([self.device.motion.park])
         self.travel(_xy_words(park)[0])
-        self.builder.recorder.move(tuple(np.round(park[0], GCODE_DECIMALS).tolist()))
+        self.builder.recorder.move(tuple(round_as_text(park[0], GCODE_DECIMALS).tolist()))
 
     def sweep(self, sweep: Sweep) -> None:
         self.builder.start(sweep)
@@ -177,7 +189,7 @@ class _GcodeWriter:
         power = self.number(sweep.tool.power * self.device.gcode.spindle_max) if self.device.laser else None
         drawn = np.repeat(sweep.sizes > 1, sweep.sizes) if self.device.laser else slice(None)
         # as the text gives them: rounded to its decimals, the speed as its F word
-        self.builder.recorder.strokes(np.round(sweep.points[drawn], GCODE_DECIMALS),
+        self.builder.recorder.strokes(round_as_text(sweep.points[drawn], GCODE_DECIMALS),
                                       sweep.sizes[sweep.sizes > 1] if self.device.laser else sweep.sizes,
                                       float(self.number(feed)) / 60, sweep.name)
         for batch, sizes in sweep.batches():   # the words of a batch of lines at a time

@@ -211,3 +211,30 @@ def test_coordinates_formatted_at_once_are_each_formatted_alone(points):
 
     words = _xy_words(np.asarray(points, dtype=float))
     assert words == [f"X{fmt_number(x, 3)} Y{fmt_number(y, 3)}" for x, y in points]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.floats(-1e5, 1e5, allow_nan=False) |
+                st.integers(-10**8, 10**8).map(lambda n: n / 2000) |  # ties and values next to them
+                st.integers(-10**8, 10**8).map(lambda n: np.nextafter(n / 2000, np.inf)),
+                min_size=1, max_size=40))
+def test_the_record_rounds_as_the_text_is_written(values):
+    """What the writer records is what its words say, near ties too (0.0005 is written 0.001)."""
+    from foldfab.programs.gcode import round_as_text
+
+    rounded = round_as_text(np.asarray(values, dtype=float), 3)
+    assert rounded.tolist() == [float("%.3f" % v) for v in values]
+
+
+def test_a_program_through_rounding_ties_reads_back_as_recorded():
+    """Points a half-thousandth apart (ties of the three decimals) reach the report as the text
+    gives them: ``--verify`` and every plot's check accept the program."""
+    from foldfab.programs.interpret import drawn
+
+    device = load_device("grbl")
+    steps = np.arange(200) * 0.0005
+    line = (10 + steps) + 1j * (20 + steps[::-1])
+    plan = PlotPlan(make_document({1: [line]}), [Pass(1, "valley", device.tool_for("valley", {}))], (210.0, 297.0))
+    program = write_gcode(plan, device)
+    read = drawn(program, device, plan.sheet, verify=True)
+    assert np.array_equal(read.points, program.drawn(device.frame(plan.sheet)).points)
