@@ -42,7 +42,7 @@ def _chooser(args: argparse.Namespace, prompting: list[bool]):
     def choose(location) -> int | None:
         left = location.strokes - location.acknowledged
         trusted = (f"resume at stroke {location.stroke + 1}, where its position places it" if
-                   location.stroke < location.strokes else "the job is finished: end it (the token is deleted)")
+                   location.stroke < location.strokes else "every stroke is drawn: send the closing (tool up, head parked)")
         print(f"\nfoldfab: where the plot stopped is uncertain: {location.doubt}.\n"
               f"  a  resume at stroke {location.acknowledged + 1} of {location.strokes}, the last acknowledged "
               f"({left} strokes; those the plotter drew since are drawn again)\n"

@@ -33,15 +33,14 @@ Resume states are JSON files in ``$XDG_STATE_HOME/foldfab/resume/`` (default
      "program_sha256": "...", "program_bytes": 9156,
      "stroke": 41, "strokes": 279, "pauses_done": 0, "reason": "...", "locate": true}
 
-``stroke`` is the index (in ``interpret(program).strokes``) of the first stroke not
-known to be drawn; ``pauses_done`` counts the operator pauses already confirmed;
-``locate`` is false when the plotter reported an error (it skipped an instruction, so
-its position would place the resume past a stroke it did not draw correctly).  A state
-file is input like a job file: :func:`load_state` reads only a regular file of at most
-:data:`STATE_MAX_BYTES`, without following links, and checks every field's type and
-range (the program's own counts in :func:`check_state`); a token is a name matching
-:data:`TOKEN_PATTERN`, the one inside the file must be its file's, so no path ever
-leaves the state folder.
+``stroke`` is the index (in ``interpret(program).strokes``) of the first stroke not known to be
+drawn (``strokes``: all are, the closing is left); ``pauses_done`` counts the operator pauses
+already confirmed; ``locate`` is false when the plotter reported an error (it skipped an
+instruction, so its position would place the resume past a stroke it did not draw correctly).
+A state file is input like a job file: :func:`load_state` reads only a regular file of at most
+:data:`STATE_MAX_BYTES`, without following links, and checks every field's type and range (the
+program's own counts in :func:`check_state`); a token is a name matching :data:`TOKEN_PATTERN`,
+the one inside the file must be its file's, so no path ever leaves the state folder.
 """
 
 from __future__ import annotations
@@ -258,7 +257,7 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
                            f"{len(strokes)} strokes")
     cut = resume_cut(program, strokes, stroke)
     text = program.text
-    preamble = text[:program.sections[0].offset]  # IN; | units, modes and the tool up
+    preamble = text[:_preamble_end(program, strokes)]  # IN; | units, modes and the tool up
     before = [p for p in program.pauses if p.offset <= cut]
     done = len(before) if pauses_done is None else pauses_done
     pending = before[done:] if stroke < len(strokes) else []  # nothing is left to draw after a pause
@@ -286,14 +285,19 @@ def resume_program(program: Program, device: DeviceProfile, stroke: int,
 
 
 def resume_cut(program: Program, strokes: list[Stroke], stroke: int) -> int:
-    """Offset in ``program`` (whose strokes are ``strokes``) from which a resume at ``stroke``
-    sends the original text: the stroke's start, or, with every stroke drawn
-    (``stroke == len(strokes)``), where the last one lifts the tool: the program's closing."""
+    """Offset in ``program`` (whose strokes are ``strokes``) from which a resume at ``stroke`` sends
+    the original text: the stroke's start; with every stroke drawn, where the last lifts the tool
+    (the program's closing; EBB: nothing, its closing moves are relative and the homing parks)."""
     if stroke < len(strokes):
         return strokes[stroke].offset
-    if program.protocol == "ebb":  # its closing moves are relative to the last stroke: the homing parks
-        return len(program.text)
-    return strokes[-1].end if strokes else program.sections[0].offset
+    return len(program.text) if program.protocol == "ebb" else strokes[-1].end if strokes else \
+        _preamble_end(program, strokes)
+
+
+def _preamble_end(program: Program, strokes: list[Stroke]) -> int:
+    """Where the set-up ends: the first section, or (a queue's stored program need not be foldfab's)
+    the first stroke."""
+    return program.sections[0].offset if program.sections else strokes[0].offset if strokes else len(program.text)
 
 
 def first_undrawn(program: Program, device: DeviceProfile, strokes: list[Stroke], stroke: int,
@@ -499,9 +503,8 @@ class PlotStopped(FoldfabError):
     """A plot stopped before its end, after the safe stop; ``token`` names its resume state."""
 
     def __init__(self, stop: StreamStopped, token: str, stroke: int, strokes: int):
-        left = (f"{strokes - stroke} of {strokes} strokes left" if stroke < strokes
-                else "every stroke was drawn, the closing (tool up, head parked) was not confirmed")
-        left += f" (resume token {token})"
+        left = (f"{strokes - stroke} of {strokes} strokes left" if stroke < strokes else "every stroke was "
+                "drawn, the closing (tool up, head parked) was not confirmed") + f" (resume token {token})"
         super().__init__(f"{stop}; {'tool lifted' if stop.lifted else 'the tool may still be down'}; {left}")
         self.stop, self.token, self.stroke, self.strokes = stop, token, stroke, strokes
         self.exit_code = stop.exit_code
@@ -515,14 +518,12 @@ def plot(program: Program, device: DeviceProfile, *, job: str, port: str,
          choose: Callable[[Location], int | None] | None = None) -> StreamResult:
     """Stream ``program`` (built from the job file ``job``) to ``device`` at ``port``.
 
-    With ``resume``, only what the saved state says is left is sent, after checking the
-    program is unchanged; the state is deleted once the plot finishes.  ``from_stroke``
-    (an index; the number of strokes: every one is drawn) is the operator's choice of where
-    to resume, instead of asking the plotter;
-    when the plotter's answer is doubtful, ``choose`` is asked (the stroke to resume at, at
-    or past the end: the job is finished; None: stop), and without it
-    :class:`ResumeAmbiguous` is raised.  A plot that stops early saves (or updates) its
-    state and raises :class:`PlotStopped`.
+    With ``resume``, only what the saved state says is left is sent, after checking the program
+    is unchanged; the state is deleted once the plot finishes.  ``from_stroke`` (an index; the
+    number of strokes: every one is drawn, the closing is sent) is the operator's choice of where
+    to resume, instead of asking the plotter; when the plotter's answer is doubtful, ``choose`` is
+    asked (the stroke to resume at; None: stop), and without it :class:`ResumeAmbiguous` is
+    raised.  A plot that stops early saves (or updates) its state and raises :class:`PlotStopped`.
     """
     from foldfab.programs.interpret import interpret
     from foldfab.plotting.progress import JobProgress

@@ -429,7 +429,11 @@ def test_samples_lie_where_svgpathtools_measures_the_arc(tmp_path_factory, point
                     'width="100mm" height="50mm" viewBox="0 0 200 100"')
     got = read(svg, samples=samples)
     total = path.length()
-    expected = [path.point(path.ilength(s)) for s in np.linspace(0, total, samples)[1:-1]]
+    try:
+        expected = [path.point(path.ilength(s)) for s in np.linspace(0, total, samples)[1:-1]]
+    except Exception as exc:  # the oracle's own bisection over its quad lengths may not converge
+        assume("Maximum iterations reached" not in str(exc))
+        raise
     expected = [path.start, *expected, path.end]
     want = np.column_stack([np.real(expected) * 0.5, (100 - np.imag(expected)) * 0.5])
     assume(np.linalg.norm(np.diff(want, axis=0), axis=1).min() > 1e-3)  # the reader drops repeated points

@@ -558,7 +558,7 @@ def test_on_a_terminal_the_operator_is_asked(answer, power_cycled, capsys, monke
     monkeypatch.setattr("builtins.input", lambda prompt: next(answers))
     code = main([*args, "--resume", token])
     err = capsys.readouterr().err
-    assert "a  resume at stroke" in err and "p  trust the plotter: the job is finished" in err and "q  stop here" in err
+    assert "a  resume at stroke" in err and "p  trust the plotter: every stroke is drawn: send the closing" in err and "q  stop here" in err
     drawn = [s for s in _SESSIONS[session].strokes if s.length > 0]
     if answer == "q":
         assert code == 2 and load_state(token).stroke > 0 and not drawn
