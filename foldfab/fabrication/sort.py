@@ -24,6 +24,7 @@ then moves the strokes the walk left behind, never adding travel.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -116,7 +117,7 @@ def _greedy(table: StrokeEnds, pen: complex) -> tuple[np.ndarray, np.ndarray]:
     walk = _Walk(table)
     undrawn, k, total = walk.undrawn, table.k, len(table.points)
     dist, index, first, width = memoryview(table.dist), memoryview(table.index), memoryview(table.first), table.width
-    x, y = memoryview(walk.x), memoryview(walk.y)
+    x, y = walk.x, walk.y
     entries = []
     at = -1  # the end the pen left by (-1: the pen is not on a stroke end)
     for step in range(count):
@@ -131,26 +132,9 @@ def _greedy(table: StrokeEnds, pen: complex) -> tuple[np.ndarray, np.ndarray]:
                 j += 1
             else:
                 entry = -1
-        if entry < 0 and at >= 0:
-            j = at * k
-            stop = j + k
-            while j < stop and not undrawn[index[j] >> 1]:
-                j += 1
-            if j < stop:
-                entry = index[j]
-                bound = dist[j] * (1 + MARGIN) + 1e-12
-                j += 1
-                if j == stop or dist[j] <= bound:  # a tie, or the row ends: the exact nearest of the tied
-                    px, py = x[at], y[at]
-                    dx, dy = x[entry] - px, y[entry] - py
-                    best = (dx * dx + dy * dy, entry)
-                    while j < stop and dist[j] <= bound:
-                        other = index[j]
-                        if undrawn[other >> 1]:
-                            dx, dy = x[other] - px, y[other] - py
-                            best = min(best, (dx * dx + dy * dy, other))
-                        j += 1
-                    entry = best[1] if j < stop or k == total else -1  # the tie may go on beyond the row
+        if entry < 0 and at >= 0:  # the end's row of neighbours (the exact nearest of any tie)
+            found = walk.pick(dist[at * k:at * k + k], index[at * k:at * k + k], complex(x[at], y[at]), total)
+            entry = -1 if found is None else found
         if entry < 0:
             entry = walk.nearest(pen if at < 0 else complex(x[at], y[at]), total - 2 * step)
         undrawn[entry >> 1] = 0
@@ -252,7 +236,7 @@ class _Walk:
 
     def __init__(self, table: StrokeEnds):
         self.xy = xy = table.xy
-        self.x, self.y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+        self.x, self.y = memoryview(np.ascontiguousarray(xy[:, 0])), memoryview(np.ascontiguousarray(xy[:, 1]))
         self.undrawn = bytearray(b"\x01") * (len(xy) // 2)
         self.tree = table.tree  # over the ends undrawn when it was built: ``self.ids`` (first: the table's, all)
         self.ids = np.arange(len(xy))
@@ -269,13 +253,13 @@ class _Walk:
         k = min(2 * NEIGHBOURS, len(self.ids))
         while True:
             dist, index = self.tree.query((pen.real, pen.imag), k=k)
-            found = self._pick(np.atleast_1d(dist).tolist(), self.ids[np.atleast_1d(index)].tolist(), pen,
+            found = self.pick(np.atleast_1d(dist).tolist(), self.ids[np.atleast_1d(index)].tolist(), pen,
                                len(self.ids))
             if found is not None:
                 return found
             k = min(2 * k, len(self.ids))
 
-    def _pick(self, dist: list[float], index: list[int], pen: complex, total: int) -> int | None:
+    def pick(self, dist: Sequence[float], index: Sequence[int], pen: complex, total: int) -> int | None:
         """The nearest undrawn end among the nearest ``index`` (at tree distances ``dist``, ascending)
         of ``total`` ends, or None when the ends left out might be as near."""
         undrawn, x, y = self.undrawn, self.x, self.y
