@@ -8,7 +8,8 @@ import os
 
 from foldfab.queue.postgres import is_postgres_url, redact
 from foldfab.queue.sqlite import SqliteQueueStore, default_queue_path
-from foldfab.queue.store import DEFAULT_WAIT, QueueStore
+from foldfab.queue.limits import DEFAULT_WAIT
+from foldfab.queue.store import QueueStore
 
 
 def queue_location(location: str | os.PathLike | None = None) -> str:

@@ -11,7 +11,7 @@ every job in one transaction, then the source loses them in one; the columns are
 from __future__ import annotations
 
 from foldfab.errors import FoldfabError
-from foldfab.queue.records import ACTIVE
+from foldfab.queue.limits import ACTIVE
 from foldfab.queue.schema import columns
 from foldfab.queue.sqlstore import SqlQueueStore
 

@@ -33,7 +33,8 @@ from typing import Any, Iterator, Sequence
 from foldfab.errors import FoldfabError
 from foldfab.queue.schema import VERSION, migrations
 from foldfab.queue.sqlstore import Queries, SqlQueueStore, pid_alive
-from foldfab.queue.store import DEFAULT_WAIT, QueueBusy
+from foldfab.queue.limits import DEFAULT_WAIT
+from foldfab.queue.store import QueueBusy
 
 CHANNEL = "foldfab_queue"
 LOCK_CLASS = 0x466F  # advisory locks: (LOCK_CLASS, hashtext(port)) a plotter, (LOCK_CLASS + 1, 0) the schema

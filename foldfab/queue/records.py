@@ -38,8 +38,7 @@ from dataclasses import dataclass
 
 from foldfab.errors import FoldfabError
 from foldfab.plotting.progress import done_share
-from foldfab.queue.limits import (ACTIVE, DEFAULT_HEARTBEAT, DEFAULT_LEASE, FINISHED, LEASE_HEARTBEATS,  # noqa: F401
-                                  MAX_COPIES, MAX_JOB_ID, MAX_PLOTTER_NAME, MIN_LEASE, PRIORITIES, RUNNABLE, STATES)
+from foldfab.queue.limits import MAX_PLOTTER_NAME
 from foldfab.queue.snapshot import Snapshot
 
 

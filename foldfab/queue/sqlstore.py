@@ -18,8 +18,8 @@ from contextlib import AbstractContextManager
 from typing import Any, Sequence
 
 from foldfab.errors import FoldfabError
-from foldfab.queue.records import (ACTIVE, FINISHED, MAX_COPIES, MAX_JOB_ID, PRIORITIES, RUNNABLE, Claim, Control,
-                                   Event, JobPage, JobRecord, NewJob, WorkerId)
+from foldfab.queue.limits import ACTIVE, FINISHED, MAX_COPIES, MAX_JOB_ID, PRIORITIES, RUNNABLE
+from foldfab.queue.records import Claim, Control, Event, JobPage, JobRecord, NewJob, WorkerId
 from foldfab.queue.plotters import PlotterRegistry
 from foldfab.queue.schema import resume
 from foldfab.queue.snapshot import Snapshot, drawn_length, program_from, program_meta

@@ -12,7 +12,6 @@ import threading
 from typing import TYPE_CHECKING, Protocol, Sequence
 
 from foldfab.errors import FoldfabError
-from foldfab.queue.limits import DEFAULT_WAIT  # noqa: F401  (the stores' default, named here too)
 
 if TYPE_CHECKING:
     from foldfab.queue.records import Claim, Control, Event, JobPage, JobRecord, NewJob, PlotterRecord, WorkerId

@@ -43,8 +43,8 @@ from functools import partial
 from typing import TYPE_CHECKING, Callable, Protocol, TypeVar
 
 from foldfab.errors import FoldfabError
-from foldfab.queue.records import (DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS, Claim, JobRecord, WorkerId,
-                                   default_plotter_name, plotter_name)
+from foldfab.queue.limits import DEFAULT_HEARTBEAT, DEFAULT_LEASE, LEASE_HEARTBEATS
+from foldfab.queue.records import Claim, JobRecord, WorkerId, default_plotter_name, plotter_name
 from foldfab.queue.snapshot import load_snapshot_device
 from foldfab.queue.store import QueueBusy, QueueStore
 

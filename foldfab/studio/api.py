@@ -482,7 +482,8 @@ class Studio:
 
     def queue(self, request: dict) -> dict:
         """Build the program now and add a snapshot of it to the plot queue."""
-        from foldfab.queue.records import MAX_COPIES, PRIORITIES, NewJob
+        from foldfab.queue.limits import MAX_COPIES, PRIORITIES
+        from foldfab.queue.records import NewJob
         from foldfab.queue.snapshot import make_snapshot
         from foldfab.queue.location import open_queue
 

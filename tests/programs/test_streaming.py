@@ -100,7 +100,7 @@ def test_export_writes_what_the_writer_makes_whole_and_reports_its_size(job, dev
     rc, text, err = run(capsys, "export", job, "--device", device_name, "-o", tmp_path / f"again{suffix}",
                         "--json", "--scale", "fit", "--verify")
     assert rc == 0 and json.loads(text) == json.loads(json.dumps(report).replace(str(out), str(tmp_path / f"again{suffix}"))
-                                                      .replace(f"program-", "again-")), err
+                                                      .replace("program-", "again-")), err
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
 
 

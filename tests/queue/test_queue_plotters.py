@@ -17,7 +17,8 @@ from foldfab.devices import load_device
 from foldfab.errors import FoldfabError
 from foldfab.programs.program import Program
 from foldfab.queue.location import open_queue
-from foldfab.queue.records import MAX_PLOTTER_NAME, NewJob, WorkerId
+from foldfab.queue.limits import MAX_PLOTTER_NAME
+from foldfab.queue.records import NewJob, WorkerId
 from foldfab.queue.schema import VERSION, migrations
 from foldfab.queue.snapshot import make_snapshot, program_meta
 from foldfab.queue.worker import Worker, WorkerOptions
