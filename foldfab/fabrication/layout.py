@@ -12,7 +12,7 @@ import numpy as np
 from foldfab.design import Design
 from foldfab.devices import Blade, DeviceProfile, Tool
 from foldfab.errors import FoldfabError
-from foldfab.fabrication.plan import Pass, Pause, PlotPlan
+from foldfab.fabrication.plan import Pass, Pause, PlotPlan, collection
 from foldfab.fabrication.spec import FLIPS, LAYERS, MARKS, FabricationSpec, flip_message, job_spec
 
 
@@ -213,18 +213,6 @@ def lay_out(design: Design, device: DeviceProfile, spec: FabricationSpec, placem
         if name == "valley" and marks:   # on the front, with the scoring tool: drawn, never cut
             add_marks(doc, steps, marks, device)
     return PlotPlan(doc, steps, sheet)
-
-
-def collection(lines: list[np.ndarray]):
-    """``lines`` (1-D complex arrays of two points or more) as a vpype ``LineCollection`` that
-    holds these very arrays: its constructor copies each line in a Python call of its own,
-    a third of a second for a hundred thousand lines.  The arrays may be views into one
-    array, as long as they do not overlap (vpype's transforms change lines in place)."""
-    import vpype as vp
-
-    layer = vp.LineCollection()
-    layer.lines.extend(lines)  # vpype's documented list of the collection's lines, itself
-    return layer
 
 
 def add_marks(doc, steps: list, marks: list[np.ndarray], device: DeviceProfile) -> None:

@@ -19,7 +19,7 @@ import itertools
 
 import numpy as np
 
-from foldfab.fabrication.plan import Pass, Pause, PlotPlan, device_steps
+from foldfab.fabrication.plan import Pass, Pause, PlotPlan, collection, device_steps
 
 METHODS = ("none", "greedy", "two-opt")
 
@@ -93,7 +93,7 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
             result = _simplify(result, resolution / 2)
         if forget:
             cache.clear()
-        doc.add(result, step.layer_id)  # one pass over the lines: a LineCollection first would be two
+        doc.layers.setdefault(step.layer_id, collection([])).lines.extend(result)  # not copied, as doc.add would
         doc.layers[step.layer_id].metadata.update(lines.metadata)
         if result:
             pen = result[-1][-1]

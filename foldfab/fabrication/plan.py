@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Union
 from foldfab.devices import Blade, Tool
 
 if TYPE_CHECKING:
+    import numpy
     import vpype
 
 
@@ -75,3 +76,16 @@ def device_steps(plan: PlotPlan, tool_changer: bool) -> Iterator[tuple[int, Step
                 yield index, Pause(f"Load tool {step.tool.pen} for the {step.name} pass, then resume.")
             pen = step.tool.pen
         yield index, step
+
+
+def collection(lines: list[numpy.ndarray]) -> vpype.LineCollection:
+    """``lines`` (1-D complex arrays of two points or more) as a vpype ``LineCollection`` that
+    holds these very arrays: its constructor copies each line in a Python call of its own,
+    a third of a second for a hundred thousand lines.  The arrays may be views into one
+    array, or into another plan's lines (the optimizer's orders are the lay-out's lines, some
+    seen backwards), since nothing in foldfab changes a plan's lines in place."""
+    import vpype as vp
+
+    layer = vp.LineCollection()
+    layer.lines.extend(lines)  # vpype's documented list of the collection's lines, itself
+    return layer

@@ -4,6 +4,7 @@ what a short command costs).  Run in a fresh interpreter per command, as the con
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -30,15 +31,15 @@ JOB = str(ROOT / "jobs" / "hexagon-fig8a.toml")
 DIAMOND = str(ROOT / "jobs" / "diamond-fig9.toml")
 
 
-def after(argv: list[str], expression: str, cwd):
-    """The value of ``expression`` (Python, a list or bool) in the process that ran ``foldfab ARGV``,
-    once the command is done (it must succeed)."""
-    code = ("import gc, sys, runpy\nsys.argv = ['foldfab', *sys.argv[1:]]\n"
+def after(argv: list[str], expression: str, cwd, setup: str = "", env: dict[str, str] | None = None):
+    """The value of ``expression`` (Python, a list or bool; after the code ``setup``) in the process
+    that ran ``foldfab ARGV`` (with the environment ``env``), once the command is done (it must succeed)."""
+    code = ("import gc, os, sys, runpy\nsys.argv = ['foldfab', *sys.argv[1:]]\n"
             "try:\n    runpy.run_module('foldfab', run_name='__main__')\nexcept SystemExit as exc:\n"
-            "    assert not exc.code, exc.code\n"
+            f"    assert not exc.code, exc.code\n{setup}\n"
             f"print(repr({expression}), file=sys.stderr)\n")
     result = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, cwd=cwd,
-                            timeout=300)
+                            timeout=300, env=env)
     assert result.returncode == 0, result.stderr
     return eval(result.stderr.strip().splitlines()[-1])  # a value printed by the child
 
@@ -86,3 +87,37 @@ def test_only_a_command_that_builds_one_thing_runs_without_the_cyclic_collector(
     """Loading the libraries is cheaper without cyclic collection (nothing of it is garbage); a
     command that runs on (plotting, the queue's worker, the studio) collects as usual."""
     assert after([arg.format(tmp=tmp_path) for arg in argv], "gc.isenabled()", tmp_path) is collects
+
+
+def test_numpy_and_scipy_start_no_idle_threads(tmp_path):
+    """OpenBLAS's threads (one per core and library) spin at start and after work, for matrices of
+    three by three: no command starts them, unless the user asks for them."""
+    argv = ["export", JOB, "--device", "hp7475a", "-o", str(tmp_path / "h.plt")]
+    assert after(argv, "len(os.listdir('/proc/self/task'))", tmp_path) == 1
+    asked = dict(os.environ, OPENBLAS_NUM_THREADS="2")
+    assert after(argv, "os.environ['OPENBLAS_NUM_THREADS']", tmp_path, env=asked) == "2"
+
+
+MALLINFO = """
+import ctypes
+class Info(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in
+                ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks", "keepcost")]
+mallinfo2 = ctypes.CDLL(None).mallinfo2
+mallinfo2.restype = Info
+"""
+"""glibc's ``mallinfo2``: ``arena`` is what the heap holds from the system."""
+
+
+@pytest.mark.parametrize("argv, keeps", [
+    (["export", JOB, "--device", "hp7475a", "-o", "{tmp}/h.plt"], True),
+    (["design", JOB], True),
+    (["devices"], False),
+    (["plot", DIAMOND, "--device", "hp7475a", "--port", "sim://?time=instant", "--yes"], False),
+])
+def test_a_command_that_builds_one_thing_keeps_freed_memory_for_its_next_arrays(argv, keeps, tmp_path):
+    """A large export frees and allocates arrays of megabytes by turns: the heap keeps 64 MB
+    spare at its top rather than handing it back to be faulted in again, page by page; a command
+    that runs on (plotting) leaves the allocator as it is."""
+    arena = after([arg.format(tmp=tmp_path) for arg in argv], "mallinfo2().arena", tmp_path, setup=MALLINFO)
+    assert (arena >= 64 << 20) is keeps

@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 
 from foldfab.design import load_design
 from foldfab.devices import load_device
-from foldfab.fabrication.layout import collection, lay_out, layer_tools, place
+from foldfab.fabrication.layout import lay_out, layer_tools, place
+from foldfab.fabrication.plan import collection
 from foldfab.fabrication.scoring import (_chains, _straight_pairs, crease_lines, crease_strokes, split_strokes,
                                          stroke_segments)
 from foldfab.fabrication.spec import job_spec
