@@ -83,12 +83,9 @@ def _optimized(plan: PlotPlan, steps: list, two_opt: bool, resolution: float, st
                 cache["ours", index, pen] = _ours(result, two_opt, pen, onward.goal(), cache["lines", index][1])
             orders[:0] = cache["ours", index, pen]
         cache["lines", index] = result, None, loops  # a million strokes' table is 200 MB: one layer's at a time
-        # A sorted order backwards (each line reversed) has the same inner travel: take the
-        # order and direction that arrive and leave by less (made one at a time: on a million
-        # strokes each candidate's list of lines is 100 MB).
-        candidates = (_end_towards(_reloop(order, pen, resolution, onward) if loops else order, pen, onward)
-                      for ordered in orders for order in (ordered, [line[::-1] for line in ordered[::-1]]))
-        result = min(candidates, key=lambda c: _entry_exit(c, pen, onward))
+        result = min(_candidates(orders, pen, resolution, onward, loops), key=lambda c: _entry_exit(c, pen, onward))
+        if isinstance(result, _Walked):
+            result = result.lines()
         if step.name not in keep_vertices:  # last: simplifying keeps the ends of every line
             result = _simplify(result, resolution / 2)
         if forget:
@@ -141,7 +138,7 @@ def _vpype_operation(name: str):
 
 
 def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | None,
-          table=None) -> list[list[np.ndarray]]:
+          table=None) -> list[_Walked | list[np.ndarray]]:
     """foldfab's orders of ``lines`` from ``pen``, each line either way round: the greedy
     nearest-end order over the whole layer with its stragglers moved
     (:func:`foldfab.fabrication.sort.nearest_order`), and when the pen should end near ``goal``
@@ -150,17 +147,68 @@ def _ours(lines: list[np.ndarray], two_opt: bool, pen: complex, goal: complex | 
     A greedy walk depends much on where it starts: the roll's mountains, entered where its
     valleys end, end 12 m from the park position; walked from there and drawn backwards,
     they end beside it.  ``table``: the ends of ``lines`` (:class:`foldfab.fabrication.sort.StrokeEnds`)
-    when already found."""
+    when already found.  Orders by index (:class:`_Walked`), as lists of lines with ``two_opt``."""
     from foldfab.fabrication.sort import StrokeEnds, nearest_orders
 
+    table = table or StrokeEnds(*_line_ends(lines))
     begins = [pen] if goal is None or len(lines) < 2 else [pen, goal]
-    ours = []
-    for begin, (order, flipped) in zip(begins, nearest_orders(table or StrokeEnds(*_line_ends(lines)), begins)):
-        ordered = [lines[i][::-1] if turn else lines[i] for i, turn in zip(order.tolist(), flipped.tolist())]
+    ours: list[_Walked | list[np.ndarray]] = []
+    for begin, (order, flipped) in zip(begins, nearest_orders(table, begins)):
+        walked = _Walked(lines, table.points, order, flipped)
         if begin is not pen:
-            ordered = [line[::-1] for line in ordered[::-1]]
-        ours.append(_two_opt(ordered, pen) if two_opt else ordered)
+            walked = walked.backwards()
+        ours.append(_two_opt(walked.lines(), pen) if two_opt else walked)
     return ours
+
+
+class _Walked:
+    """A layer's ``lines`` in a drawing order, by index: line ``order[i]``, backwards where
+    ``flipped[i]`` (``ends``: line ``i``'s first point at ``2i``, its last at ``2i + 1``).  On
+    a layer of 50,000 lines, a candidate order as a list costs 50,000 views and their
+    concatenation to measure; by index it is two arrays, and only the order chosen is made
+    a list."""
+
+    def __init__(self, lines: list[np.ndarray], ends: np.ndarray, order: np.ndarray, flipped: np.ndarray):
+        self.source, self.ends, self.order, self.flipped = lines, ends, order, flipped
+
+    def lines(self) -> list[np.ndarray]:
+        lines = self.source
+        return [lines[i][::-1] if turn else lines[i] for i, turn in zip(self.order.tolist(), self.flipped.tolist())]
+
+    def backwards(self) -> _Walked:
+        """The same lines drawn in the opposite order and direction (the same inner travel)."""
+        return _Walked(self.source, self.ends, self.order[::-1], ~self.flipped[::-1])
+
+    def firsts_and_lasts(self) -> tuple[np.ndarray, np.ndarray]:
+        """The first and last points of each line as drawn, in order (:func:`_line_ends`)."""
+        entry = 2 * self.order + self.flipped
+        return self.ends[entry], self.ends[entry ^ 1]
+
+    def end_towards(self, pen: complex, onward: _Onward) -> _Walked:
+        """:func:`_end_towards`."""
+        firsts, lasts = self.firsts_and_lasts()
+        if not len(firsts) or not _turn_last(lasts[-2] if len(lasts) > 1 else pen, firsts[-1], lasts[-1], onward):
+            return self
+        flipped = self.flipped.copy()
+        flipped[-1] = not flipped[-1]
+        return _Walked(self.source, self.ends, self.order, flipped)
+
+
+def _candidates(orders: list[_Walked | list[np.ndarray]], pen: complex, resolution: float, onward: _Onward,
+                loops: bool):
+    """Each of ``orders`` and the same backwards (each line reversed: the same inner travel),
+    closed lines relooped (``loops``, :func:`_reloop`) and the last line turned towards ``onward``
+    (:func:`_end_towards`); made one at a time, since on a million strokes a candidate's list of
+    lines is 100 MB."""
+    for ordered in orders:
+        if isinstance(ordered, _Walked):
+            if not loops:
+                yield ordered.end_towards(pen, onward)
+                yield ordered.backwards().end_towards(pen, onward)
+                continue
+            ordered = ordered.lines()
+        for order in (ordered, [line[::-1] for line in ordered[::-1]]):
+            yield _end_towards(_reloop(order, pen, resolution, onward) if loops else order, pen, onward)
 
 
 def _theirs(lines: list[np.ndarray], two_opt: bool, pen: complex) -> list[np.ndarray]:
@@ -334,12 +382,12 @@ def _line_ends(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return points[np.append(0, stops[:-1])], points[stops - 1]
 
 
-def _entry_exit(lines: list[np.ndarray], pen: complex, onward: _Onward | None) -> float:
+def _entry_exit(lines: list[np.ndarray] | _Walked, pen: complex, onward: _Onward | None) -> float:
     """Travel from ``pen`` into ``lines``, inside them (reloop and the last line's turn change
     it) and from their end on (``onward``; None: nowhere)."""
-    if not lines:
+    starts, ends = lines.firsts_and_lasts() if isinstance(lines, _Walked) else _line_ends(lines)
+    if not len(starts):
         return 0.0
-    starts, ends = _line_ends(lines)
     inside = float(np.abs(starts[1:] - ends[:-1]).sum())
     return abs(starts[0] - pen) + inside + (0.0 if onward is None else onward.cost(ends[-1]))
 
@@ -347,13 +395,15 @@ def _entry_exit(lines: list[np.ndarray], pen: complex, onward: _Onward | None) -
 def _end_towards(lines: list[np.ndarray], pen: complex, onward: _Onward) -> list[np.ndarray]:
     """Reverse the layer's last line if the pen then gets there and on (``onward``: the next
     layer, or the park position) by less travel."""
-    if not lines or lines[-1][0] == lines[-1][-1]:
-        return lines
-    last = lines[-1]
-    before = lines[-2][-1] if len(lines) > 1 else pen
-    if abs(before - last[-1]) + onward.cost(last[0]) < abs(before - last[0]) + onward.cost(last[-1]):
-        return [*lines[:-1], last[::-1]]
+    if lines and _turn_last(lines[-2][-1] if len(lines) > 1 else pen, lines[-1][0], lines[-1][-1], onward):
+        return [*lines[:-1], lines[-1][::-1]]
     return lines
+
+
+def _turn_last(before: complex, first: complex, last: complex, onward: _Onward) -> bool:
+    """Is a layer's last line (from ``first`` to ``last``, an open one), entered from ``before``,
+    better drawn backwards, for the way in and on (``onward``)?"""
+    return first != last and abs(before - last) + onward.cost(first) < abs(before - first) + onward.cost(last)
 
 
 def _reloop(lines: list[np.ndarray], pen: complex, tolerance: float, onward: _Onward) -> list[np.ndarray]:

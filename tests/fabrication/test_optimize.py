@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from foldfab.fabrication import optimize
 from foldfab.design import build_design
 from foldfab.job import parse_job
-from foldfab.fabrication.optimize import (KEPT_WHOLE_POINTS, _closed, _entries, _kept_whole, _line_ends, _Onward,
-                                         _onward, _ours, _reloop, _simplify, _theirs)
+from foldfab.fabrication.optimize import (KEPT_WHOLE_POINTS, _closed, _end_towards, _entries, _entry_exit, _kept_whole,
+                                         _line_ends, _Onward, _onward, _ours, _reloop, _simplify, _theirs, _Walked)
 from foldfab.fabrication.scoring import crease_lines
 
 
@@ -51,8 +51,8 @@ def test_every_order_draws_every_line_once_as_it_was_or_reversed_and_two_opt_nev
         lines, window, pen, two_opt, goal):
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(optimize, "TWO_OPT_LINES", window)
-        ours = _ours(lines, two_opt, pen, goal)
-        greedy = _ours(lines, False, pen, goal)
+        ours = [drawn(order) for order in _ours(lines, two_opt, pen, goal)]
+        greedy = [drawn(order) for order in _ours(lines, False, pen, goal)]
     assert len(ours) == (1 if goal is None or len(lines) < 2 else 2)
     for out in ours + ([_theirs(lines, two_opt, pen)] if lines else []):
         assert sorted(map(canonical, out)) == sorted(map(canonical, lines))
@@ -61,7 +61,32 @@ def test_every_order_draws_every_line_once_as_it_was_or_reversed_and_two_opt_nev
             assert pen_up(mine, pen) <= pen_up(plain, pen) + 1e-9
     if len(greedy) == 2:  # walked from the goal and drawn backwards: backwards, the walk from the goal
         backwards = [line[::-1] for line in greedy[1][::-1]]
-        assert pen_up(backwards, goal) == pytest.approx(pen_up(_ours(lines, False, goal, None)[0], goal))
+        assert pen_up(backwards, goal) == pytest.approx(pen_up(drawn(_ours(lines, False, goal, None)[0]), goal))
+
+
+def drawn(order) -> list[np.ndarray]:
+    """An order of :func:`_ours` as its list of lines."""
+    return order.lines() if isinstance(order, _Walked) else order
+
+
+@settings(max_examples=100, deadline=None)
+@given(lines=st.lists(line, max_size=30), pen=point, park=point, data=st.data())
+def test_an_order_by_index_measures_and_ends_as_its_list_of_lines(lines, pen, park, data):
+    """The optimizer weighs a large layer's candidate orders by index (:class:`_Walked`) and makes
+    only the chosen one a list of lines: by index, each candidate travels as far as its list and
+    turns its last line the same way (the roll's programs are byte-identical either way)."""
+    order = np.array(data.draw(st.permutations(range(len(lines)))), dtype=np.intp)
+    flipped = np.array(data.draw(st.lists(st.booleans(), min_size=len(lines), max_size=len(lines))), dtype=bool)
+    walked = _Walked(lines, np.column_stack(_line_ends(lines)).ravel(), order, flipped)
+    onward = _Onward(np.array([park]))
+    for candidate in (walked, walked.backwards()):
+        as_list = candidate.lines()
+        assert [a.tolist() for a in as_list] == [
+            (lines[i][::-1] if turn else lines[i]).tolist() for i, turn in zip(candidate.order, candidate.flipped)]
+        assert _entry_exit(candidate, pen, onward) == _entry_exit(as_list, pen, onward)
+        turned = candidate.end_towards(pen, onward).lines()
+        assert [a.tolist() for a in turned] == [a.tolist() for a in _end_towards(as_list, pen, onward)]
+    assert [a.tolist() for a in walked.backwards().lines()] == [a[::-1].tolist() for a in walked.lines()[::-1]]
 
 
 @pytest.mark.parametrize("two_opt", [False, True])
