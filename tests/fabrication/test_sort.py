@@ -201,3 +201,18 @@ def test_a_plan_travels_no_more_than_with_vpypes_orders_alone(job, device_name):
     theirs = _optimized(raw, steps, False, device.resolution, park, frozenset(), {}, mixed=False)
     ours = build_plan(design, device, job_spec(design.job))
     assert travel(ours, park, device.tool_changer)["total"] <= travel(theirs, park, device.tool_changer)["total"]
+
+
+@settings(max_examples=100, deadline=None)
+@given(raw=st.lists(stroke, max_size=80), step=grid, pen=st.tuples(coordinate, coordinate),
+       neighbours=st.sampled_from([3, 5, 12, 40]))
+def test_the_order_does_not_depend_on_how_many_neighbours_the_walk_looks_up(raw, step, pen, neighbours):
+    """The width of the neighbour table is a matter of speed alone: the walk is exact whatever it
+    is, and stragglers look for their places among their own :data:`~sort.PLACES` nearest ends."""
+    starts, ends = strokes_of(raw, step)
+    pen = complex(*pen) * step
+    expected = nearest_order(starts, ends, pen)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(sort, "NEIGHBOURS", neighbours)
+        order, flipped = nearest_order(starts, ends, pen)
+    assert (order.tolist(), flipped.tolist()) == (expected[0].tolist(), expected[1].tolist())
