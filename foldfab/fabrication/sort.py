@@ -218,16 +218,27 @@ def _relocate(order: np.ndarray, flipped: np.ndarray, table: StrokeEnds,
         if b >= 0:
             before[b] = a
         best = (gain, a, turned[stroke])
+        first, last = 2 * stroke, 2 * stroke + 1
         for other in set(table.near_strokes(stroke)) - {stroke}:
             for place in (other, before[other]):
                 if place < 0:
                     continue
+                # jump(place, stroke) + jump(stroke, nxt) - jump(place, nxt), the stroke either way
+                # round, written out: a call per jump was half the time of the moves
+                out = 2 * head if place == head else 2 * place + (not turned[place])
+                px, py = x[out], y[out]
                 nxt = after[place]
-                for turn in (False, True):
-                    turned[stroke] = turn
-                    cost = jump(place, stroke) + jump(stroke, nxt) - jump(place, nxt)
+                if nxt < 0:
+                    costs = (math.hypot(px - x[first], py - y[first]), math.hypot(px - x[last], py - y[last]))
+                else:
+                    into = 2 * nxt + turned[nxt]
+                    nx, ny = x[into], y[into]
+                    bridge = math.hypot(px - nx, py - ny)
+                    costs = (math.hypot(px - x[first], py - y[first]) + math.hypot(x[last] - nx, y[last] - ny) - bridge,
+                             math.hypot(px - x[last], py - y[last]) + math.hypot(x[first] - nx, y[first] - ny) - bridge)
+                for turn, cost in enumerate(costs):
                     if cost < best[0] - 1e-9:
-                        best = (cost, place, turn)
+                        best = (cost, place, bool(turn))
         _, place, turned[stroke] = best
         after[stroke], before[stroke] = after[place], place
         if after[place] >= 0:

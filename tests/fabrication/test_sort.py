@@ -216,3 +216,4 @@ def test_the_order_does_not_depend_on_how_many_neighbours_the_walk_looks_up(raw,
         patch.setattr(sort, "NEIGHBOURS", neighbours)
         order, flipped = nearest_order(starts, ends, pen)
     assert (order.tolist(), flipped.tolist()) == (expected[0].tolist(), expected[1].tolist())
+
