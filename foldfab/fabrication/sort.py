@@ -32,8 +32,8 @@ NEIGHBOURS = 12
 """Nearest ends looked up for every stroke end at once (at least 3: :meth:`StrokeEnds.meet`).  The
 walk's choice does not depend on it, its speed does: fewer, and the walk asks its second tree
 more often (30 µs each); more, and the query of every end costs more.  The roll's sort took
-least CPU at 12 (0.79 s; 8: 0.91 s, 10: 0.85 s, 16: 0.91 s): 5,613 asks and 0.20 s of
-queries, against 4,710 and 0.27 s at 16."""
+least CPU at 12 (0.80 s; 10: 0.85 s, 16: 0.88-0.95 s): 5,613 asks and 0.20 s of queries,
+against 4,710 and 0.27 s at 16."""
 
 PLACES = 16
 """Nearest ends of a straggler's two ends whose strokes :func:`_relocate` tries to put it beside
