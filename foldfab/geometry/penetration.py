@@ -42,9 +42,12 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     floor = max(float((hi_t.max(axis=1) - lo_t.min(axis=1)).max()) * 1e-6, 1e-12)
     cell = np.maximum(np.median(hi_t - lo_t, axis=1), floor)
     del lo_t, hi_t
+    # counted from the lowest corner, no cell number exceeds a million (the floor): far from the
+    # origin, boxes that are all one point would otherwise divide past 64 bits
+    origin = lo.min(axis=0)
     while True:
-        c_lo = np.floor(lo / cell).astype(np.int64)
-        c_hi = np.floor(hi / cell).astype(np.int64)
+        c_lo = np.floor((lo - origin) / cell).astype(np.int64)
+        c_hi = np.floor((hi - origin) / cell).astype(np.int64)
         span = c_hi - c_lo + 1
         counts = span.prod(axis=1)
         if counts.sum() <= 16 * n + 1024:

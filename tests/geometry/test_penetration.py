@@ -157,3 +157,14 @@ def test_candidate_pairs_hold_every_overlapping_pair_once(boxes, spread):
     touching = {(i, j) for i in range(len(boxes)) for j in range(i + 1, len(boxes))
                 if np.all(np.minimum(hi[i], hi[j]) >= np.maximum(lo[i], lo[j]))}
     assert touching <= set(map(tuple, pairs))
+
+
+def test_boxes_that_are_one_point_far_from_the_origin_pair_without_overflow():
+    """All boxes one point: the grid's cell is its floor (1e-12), and a coordinate of 40 km over it
+    is past 64 bits unless cells are counted from the lowest corner."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pairs = candidate_pairs(np.full((3, 3), 4e7), np.full((3, 3), 4e7))
+    assert sorted(map(tuple, pairs.tolist())) == [(0, 1), (0, 2), (1, 2)]
