@@ -112,8 +112,8 @@ def _keep_freed_memory() -> None:
 
     A large export frees and allocates arrays of megabytes over and over; by default each
     free hands the heap's top back to the system and the next allocation faults it in again,
-    page by page (0.4 s of system time of the 100,000-face export's 2.2 s; 0.16 s with the
-    pad, for 25 MB more peak memory).  ``mallopt`` is glibc's; elsewhere nothing changes."""
+    page by page (0.55-0.70 s of system time in the 100,000-face export; 0.16-0.20 s with the
+    pad, for 22 MB more peak memory).  ``mallopt`` is glibc's; elsewhere nothing changes."""
     import ctypes
 
     try:

@@ -7,9 +7,9 @@ through scipy's Python wrapper (15 µs apiece) and rebuilds it over every remain
 whenever the pen's neighbourhood runs dry; on the 100,000 strokes of a 12.6 m roll that was
 two thirds of an export.  Here ``cKDTree.query`` finds the :data:`NEIGHBOURS` nearest ends of
 every stroke end at once, in C, once per layer (:class:`StrokeEnds`, shared by the walks from the
-pen and from the goal; its tree also finds where stragglers may move); the walk then takes the first of the
-pen's neighbours still undrawn (drawn ones are skipped, never deleted), most often from a few
-kept in its exact order of choice.  Only when all of them are drawn does it
+pen and from the goal; its tree also finds where stragglers may move); the walk then takes the
+first of the pen's neighbours still undrawn (drawn ones are skipped, never deleted), most often
+from a few kept in its exact order of choice.  Only when all of them are drawn does it
 ask a second tree, over the ends still undrawn when it was built, rebuilt once half of those
 are drawn.
 
@@ -54,9 +54,9 @@ BLOCK = 1 << 16
 class StrokeEnds:
     """The ends of a layer's strokes (end ``2i``: stroke ``i``'s first point, ``2i + 1``: its last)
     and the :data:`NEIGHBOURS` nearest ends of each, by one ``cKDTree`` over them shared by every
-    walk, by :func:`_relocate` (:meth:`near_strokes`) and by :meth:`meet`, asked :data:`BLOCK` ends at a time.  Flat
-    arrays, read through ``memoryview`` in the walk: an item of one is a Python number at a
-    fraction of the cost of a NumPy scalar or of a ``tolist``."""
+    walk, by :func:`_relocate` (:meth:`near_strokes`) and by :meth:`meet`, asked :data:`BLOCK`
+    ends at a time.  Flat arrays, read through ``memoryview`` in the walk: an item of one is a
+    Python number at a fraction of the cost of a NumPy scalar or of a ``tolist``."""
 
     def __init__(self, starts: np.ndarray, ends: np.ndarray):
         from scipy.spatial import cKDTree  # vpype's line index is built on it
@@ -105,7 +105,7 @@ class StrokeEnds:
     def near_strokes(self, stroke: int) -> list[int]:
         """The strokes of the :data:`PLACES` nearest ends of ``stroke``'s first end, then of its last
         (asked of the tree stroke by stroke: of the 16,700 strokes of the roll's three walks that
-might move, 719 come this far)."""
+        might move, 719 come this far)."""
         index = self.tree.query(self.xy[2 * stroke:2 * stroke + 2], k=min(PLACES, len(self.points)))[1]
         return (index.reshape(-1) >> 1).tolist()
 
@@ -163,8 +163,8 @@ def nearest_order(starts: np.ndarray, ends: np.ndarray, pen: complex) -> tuple[n
     12.6 m roll, one valley at the far end it started from: a 12.5 m jump).  Each stroke that
     saves more than the walk's mean jump by leaving its place (:func:`_relocate`, most saving
     first) is moved, either way round, between two strokes that have an end among the
-    :data:`PLACES` nearest ends of either of its own, where that costs least, if that costs less than it saves:
-    the result never travels more than the greedy walk."""
+    :data:`PLACES` nearest ends of either of its own, where that costs least, if that costs
+    less than it saves: the result never travels more than the greedy walk."""
     return nearest_orders(StrokeEnds(starts, ends), [pen])[0]
 
 
