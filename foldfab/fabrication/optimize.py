@@ -185,9 +185,10 @@ class _Walked:
         return self.ends[entry], self.ends[entry ^ 1]
 
     def end_towards(self, pen: complex, onward: _Onward) -> _Walked:
-        """:func:`_end_towards`."""
-        firsts, lasts = self.firsts_and_lasts()
-        if not len(firsts) or not _turn_last(lasts[-2] if len(lasts) > 1 else pen, firsts[-1], lasts[-1], onward):
+        """:func:`_end_towards` (from the last two lines' ends alone)."""
+        entry = 2 * self.order[-2:] + self.flipped[-2:]
+        if not len(entry) or not _turn_last(self.ends[entry[0] ^ 1] if len(entry) > 1 else pen,
+                                            self.ends[entry[-1]], self.ends[entry[-1] ^ 1], onward):
             return self
         flipped = self.flipped.copy()
         flipped[-1] = not flipped[-1]
