@@ -17,12 +17,12 @@ from typing import Iterator, Sequence
 
 from foldfab.errors import FoldfabError
 from foldfab.queue.schema import migrations
-from foldfab.queue.sqlstore import MAX_JOB_ID, Queries, SqlQueueStore, pid_alive
+from foldfab.queue.sqlstore import Queries, SqlQueueStore, pid_alive
 from foldfab.queue.limits import DEFAULT_WAIT
 from foldfab.queue.store import QueueBusy
 from foldfab.xdg import foldfab_dir
 
-__all__ = ["MAX_JOB_ID", "MIGRATIONS", "SCHEMA_VERSION", "SqliteQueueStore", "default_queue_path"]
+__all__ = ["MIGRATIONS", "SCHEMA_VERSION", "SqliteQueueStore", "default_queue_path"]
 
 
 def default_queue_path() -> Path:
